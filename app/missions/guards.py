@@ -1,0 +1,61 @@
+"""Guards: pure predicates over an immutable context snapshot. Named in the mission table."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from app.messages import TelemetrySnapshot
+from app.missions.circle import CircleTarget
+from app.missions.params import MissionParams
+
+
+@dataclass(frozen=True, slots=True)
+class GuardContext:
+    t_s: float
+    state: str
+    time_in_state_s: float
+    telemetry: TelemetrySnapshot
+    params: MissionParams
+    target: object | None  # the setpoint loop's active target source
+    abort_requested: bool
+
+
+Guard = Callable[[GuardContext], bool]
+
+
+def always(ctx: GuardContext) -> bool:
+    return True
+
+
+def vehicle_ready(ctx: GuardContext) -> bool:
+    t = ctx.telemetry
+    return t.pos_vel is not None and t.home_ned_m is not None and t.flight_mode is not None and t.armed is not None
+
+
+def at_takeoff_altitude(ctx: GuardContext) -> bool:
+    h = ctx.telemetry.height_above_home_m()
+    return h is not None and h >= ctx.params.takeoff_altitude_m - ctx.params.altitude_tolerance_m
+
+
+def circle_laps_done(ctx: GuardContext) -> bool:
+    return isinstance(ctx.target, CircleTarget) and ctx.target.laps(ctx.t_s) >= ctx.params.circle_laps
+
+
+def disarmed(ctx: GuardContext) -> bool:
+    return ctx.telemetry.armed is not None and not ctx.telemetry.armed.value
+
+
+def position_lost(ctx: GuardContext) -> bool:
+    pv = ctx.telemetry.pos_vel
+    return pv is None or ctx.t_s - pv.t_s > ctx.params.position_lost_abort_s
+
+
+def abort_requested(ctx: GuardContext) -> bool:
+    return ctx.abort_requested
+
+
+GUARDS: dict[str, Guard] = {
+    g.__name__: g
+    for g in (always, vehicle_ready, at_takeoff_altitude, circle_laps_done, disarmed, position_lost, abort_requested)
+}

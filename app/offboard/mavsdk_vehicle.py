@@ -1,0 +1,277 @@
+"""The ``Vehicle`` protocol on MAVSDK 4 (``mavsdk.asyncio``), for PX4 and ArduPilot.
+
+Only this module imports mavsdk; its errors become ``VehicleError`` here. What it does differently per
+autopilot (reference notes §2 and §5):
+- rates are requested explicitly for every stream the app uses (ArduPilot sends almost nothing unasked);
+  a refused rate request is logged, not fatal — ``wait_ready`` then says what never arrived;
+- readiness means a position stream, home, flight mode and armed state — never MAVSDK's health flags,
+  which stay false on ArduPilot;
+- home comes from the stream or, when that stays silent (ArduPilot), from the one-shot getter;
+- offboard is GUIDED on ArduPilot and HOLD is BRAKE; both read through MAVSDK's own mode mapping.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
+from dataclasses import replace
+from typing import Any
+
+from mavsdk.asyncio import ComponentType, Configuration, Mavsdk, MavsdkError
+from mavsdk.asyncio.autopilot import Autopilot as MavAutopilot
+from mavsdk.asyncio.plugins.action import ActionAsync, ActionError
+from mavsdk.asyncio.plugins.offboard import OffboardAsync, OffboardError, VelocityNedYaw
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+from app.clock import Clock
+from app.errors import VehicleConnectionError, VehicleError
+from app.eventlog import EventLog
+from app.messages import (
+    AttitudeEuler,
+    Autopilot,
+    FlightMode,
+    LandedState,
+    PositionVelocityNed,
+    Stamped,
+    TelemetrySnapshot,
+    Vec3,
+)
+from app.settings import ConnectionSettings, TelemetrySettings
+
+ARM_RETRY_PERIOD_S = 1.0
+
+
+def _finite(*xs: float) -> bool:
+    return all(x is not None and math.isfinite(x) for x in xs)
+
+
+class MavsdkVehicle:
+    """A PX4 or ArduPilot vehicle reached through MAVSDK. Build it with ``MavsdkVehicle.connect``."""
+
+    def __init__(
+        self,
+        mavsdk: Mavsdk,
+        system: Any,
+        clock: Clock,
+        events: EventLog,
+        conn: ConnectionSettings,
+        tel: TelemetrySettings,
+    ) -> None:
+        self._mavsdk = mavsdk
+        self._system = system
+        self._clock = clock
+        self._events = events
+        self._conn = conn
+        self._tel_settings = tel
+        self._telemetry = TelemetryAsync(system)
+        self._action = ActionAsync(system)
+        self._offboard = OffboardAsync(system)
+        self._snapshot = TelemetrySnapshot()
+        self._autopilot = Autopilot.UNKNOWN
+
+    # ---- construction -------------------------------------------------------------------------
+
+    @classmethod
+    @asynccontextmanager
+    async def connect(
+        cls, url: str, clock: Clock, events: EventLog, conn: ConnectionSettings, tel: TelemetrySettings
+    ) -> AsyncIterator[MavsdkVehicle]:
+        """Connect to ``url`` and wait for an autopilot heartbeat; destroys MAVSDK on exit."""
+        config = Configuration.create_with_component_type(ComponentType.COMPANION_COMPUTER)
+        async with Mavsdk(config) as mavsdk:
+            try:
+                await mavsdk.add_any_connection(url)
+            except MavsdkError as e:
+                raise VehicleConnectionError("connect", "invalid connection", f"{url}: {e}") from e
+            system = await mavsdk.first_autopilot(timeout_s=conn.discover_timeout_s)
+            if system is None:
+                raise VehicleConnectionError(
+                    "connect", "no autopilot", f"no heartbeat on {url} within {conn.discover_timeout_s:.0f} s"
+                )
+            vehicle = cls(mavsdk, system, clock, events, conn, tel)
+            kind = await system.autopilot_type()
+            vehicle._autopilot = {MavAutopilot.PX4: Autopilot.PX4, MavAutopilot.ARDUPILOT: Autopilot.ARDUPILOT}.get(
+                kind, Autopilot.UNKNOWN
+            )
+            events.write(clock.now_s(), "vehicle", event="connected", url=url, autopilot=vehicle._autopilot.value)
+            yield vehicle
+
+    @property
+    def autopilot(self) -> Autopilot:
+        return self._autopilot
+
+    # ---- telemetry ----------------------------------------------------------------------------
+
+    def telemetry(self) -> TelemetrySnapshot:
+        return self._snapshot
+
+    def _update(self, **fields: Any) -> None:
+        self._snapshot = replace(self._snapshot, **fields)
+
+    async def run(self) -> None:
+        """Request rates, then consume every stream until cancelled."""
+        async with asyncio.TaskGroup() as tg:
+            tg.create_task(self._request_rates(), name="vehicle.rates")
+            tg.create_task(self._consume_position(), name="vehicle.position")
+            tg.create_task(self._consume_attitude(), name="vehicle.attitude")
+            tg.create_task(self._consume_flight_mode(), name="vehicle.flight_mode")
+            tg.create_task(self._consume_armed(), name="vehicle.armed")
+            tg.create_task(self._consume_landed(), name="vehicle.landed_state")
+            tg.create_task(self._consume_home(), name="vehicle.home")
+
+    async def _request_rates(self) -> None:
+        t = self._tel_settings
+        requests: list[tuple[str, Callable[[float], Awaitable[Any]], float]] = [
+            ("position_velocity_ned", self._telemetry.set_rate_position_velocity_ned, t.position_rate_hz),
+            ("attitude_euler", self._telemetry.set_rate_attitude_euler, t.attitude_rate_hz),
+            ("position", self._telemetry.set_rate_position, t.global_position_rate_hz),
+            ("landed_state", self._telemetry.set_rate_landed_state, t.status_rate_hz),
+            ("home", self._telemetry.set_rate_home, t.status_rate_hz),
+        ]
+
+        async def one(name: str, setter: Callable[[float], Awaitable[Any]], rate_hz: float) -> None:
+            try:
+                await setter(rate_hz)
+                self._events.write(self._clock.now_s(), "vehicle", event="rate", stream=name, rate_hz=rate_hz)
+            except MavsdkError as e:
+                self._events.write(
+                    self._clock.now_s(), "vehicle", event="rate_refused", stream=name, rate_hz=rate_hz, error=str(e)
+                )
+
+        await asyncio.gather(*(one(*r) for r in requests))
+
+    async def _consume_position(self) -> None:
+        async for pv in self._telemetry.subscribe_position_velocity_ned():
+            p, v = pv.position, pv.velocity
+            if not _finite(p.north_m, p.east_m, p.down_m, v.north_m_s, v.east_m_s, v.down_m_s):
+                continue
+            self._update(
+                pos_vel=PositionVelocityNed(
+                    self._clock.now_s(), (p.north_m, p.east_m, p.down_m), (v.north_m_s, v.east_m_s, v.down_m_s)
+                )
+            )
+
+    async def _consume_attitude(self) -> None:
+        async for a in self._telemetry.subscribe_attitude_euler():
+            self._update(
+                attitude=AttitudeEuler(
+                    self._clock.now_s(), math.radians(a.roll_deg), math.radians(a.pitch_deg), math.radians(a.yaw_deg)
+                )
+            )
+
+    async def _consume_flight_mode(self) -> None:
+        async for m in self._telemetry.subscribe_flight_mode():
+            mode = FlightMode[m.name] if m.name in FlightMode.__members__ else FlightMode.UNKNOWN
+            previous = self._snapshot.mode()
+            self._update(flight_mode=Stamped(self._clock.now_s(), mode))
+            if mode != previous:
+                self._events.write(self._clock.now_s(), "vehicle", event="flight_mode", mode=mode.value)
+
+    async def _consume_armed(self) -> None:
+        async for armed in self._telemetry.subscribe_armed():
+            previous = self._snapshot.armed
+            self._update(armed=Stamped(self._clock.now_s(), bool(armed)))
+            if previous is None or previous.value != bool(armed):
+                self._events.write(self._clock.now_s(), "vehicle", event="armed", armed=bool(armed))
+
+    async def _consume_landed(self) -> None:
+        async for s in self._telemetry.subscribe_landed_state():
+            state = LandedState[s.name] if s.name in LandedState.__members__ else LandedState.UNKNOWN
+            self._update(landed_state=Stamped(self._clock.now_s(), state))
+
+    async def _consume_home(self) -> None:
+        async for h in self._telemetry.subscribe_home():
+            self._set_home(h)
+
+    def _set_home(self, h: Any) -> bool:
+        if _finite(h.local_north_m, h.local_east_m, h.local_down_m):
+            home = (h.local_north_m, h.local_east_m, h.local_down_m)
+        else:
+            return False
+        if self._snapshot.home_ned_m != home:
+            self._update(home_ned_m=home)
+            self._events.write(self._clock.now_s(), "vehicle", event="home", home_ned_m=list(home))
+        return True
+
+    async def wait_ready(self, timeout_s: float) -> None:
+        deadline_s = self._clock.now_s() + timeout_s
+        next_home_poll_s = self._clock.now_s() + 2.0
+        while True:
+            s = self._snapshot
+            missing = [
+                name
+                for name, value in (
+                    ("position stream", s.pos_vel),
+                    ("home position", s.home_ned_m),
+                    ("flight mode", s.flight_mode),
+                    ("armed state", s.armed),
+                )
+                if value is None
+            ]
+            if not missing:
+                return
+            now_s = self._clock.now_s()
+            if now_s >= deadline_s:
+                raise VehicleConnectionError(
+                    "wait_ready", "timeout", f"no {', '.join(missing)} within {timeout_s:.0f} s"
+                )
+            if s.home_ned_m is None and now_s >= next_home_poll_s:
+                # ArduPilot: the home stream can stay silent while the one-shot getter works.
+                next_home_poll_s = now_s + 2.0
+                try:
+                    self._set_home(await self._telemetry.home())
+                except MavsdkError:
+                    pass
+            await self._clock.sleep(0.05)
+
+    # ---- commands -----------------------------------------------------------------------------
+
+    async def _call(self, name: str, coro: Awaitable[Any]) -> None:
+        try:
+            await coro
+        except (ActionError, OffboardError) as e:
+            raise VehicleError(name, e.result.name, str(e)) from e
+        except MavsdkError as e:
+            raise VehicleError(name, "ERROR", str(e)) from e
+
+    async def arm(self) -> None:
+        """Arm; a refusal is retried (pre-arm checks may still be running) until the retry timeout."""
+        deadline_s = self._clock.now_s() + self._conn.command_retry_timeout_s
+        while True:
+            try:
+                await self._call("arm", self._action.arm())
+                return
+            except VehicleError as e:
+                if e.result != "COMMAND_DENIED" or self._clock.now_s() + ARM_RETRY_PERIOD_S > deadline_s:
+                    raise
+            await self._clock.sleep(ARM_RETRY_PERIOD_S)
+
+    async def takeoff(self, altitude_m: float) -> None:
+        # PX4: writes MIS_TAKEOFF_ALT; ArduPilot: MAVSDK keeps it and sends it as NAV_TAKEOFF param 7.
+        await self._call("set_takeoff_altitude", self._action.set_takeoff_altitude(altitude_m))
+        await self._call("takeoff", self._action.takeoff())
+
+    async def start_offboard(self, yaw_rad: float) -> None:
+        await self.set_velocity_ned((0.0, 0.0, 0.0), yaw_rad)
+        await self._call("offboard_start", self._offboard.start())
+
+    async def set_velocity_ned(self, vel_ned_mps: Vec3, yaw_rad: float) -> None:
+        sp = VelocityNedYaw(vel_ned_mps[0], vel_ned_mps[1], vel_ned_mps[2], math.degrees(yaw_rad))
+        await self._call("set_velocity_ned", self._offboard.set_velocity_ned(sp))
+
+    async def hold(self) -> None:
+        await self._call("hold", self._action.hold())
+
+    async def stop_offboard(self) -> None:
+        """Zero velocity, then HOLD (ArduPilot: BRAKE). Falls back to ``hold`` if offboard.stop fails."""
+        yaw_rad = self._snapshot.attitude.yaw_rad if self._snapshot.attitude else 0.0
+        try:
+            await self.set_velocity_ned((0.0, 0.0, 0.0), yaw_rad)
+            await self._call("offboard_stop", self._offboard.stop())
+        except VehicleError:
+            await self.hold()
+
+    async def land(self) -> None:
+        await self._call("land", self._action.land())

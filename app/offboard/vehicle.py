@@ -1,0 +1,59 @@
+"""The one interface the flight code has to a vehicle.
+
+Implemented by the MAVSDK adapter (``app.offboard.mavsdk_vehicle``) for PX4 and ArduPilot, and by the
+in-process simulator (``sim.inproc``) for virtual-time tests. Commands raise ``VehicleError`` when the
+autopilot refuses them. Telemetry is a snapshot of the latest sample of every stream, each stamped with
+the loop time it was received.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from app.messages import Autopilot, TelemetrySnapshot, Vec3
+
+
+class Vehicle(Protocol):
+    @property
+    def autopilot(self) -> Autopilot:
+        """Which autopilot answered (known after ``wait_ready``)."""
+        ...
+
+    async def run(self) -> None:
+        """Consume the telemetry streams until cancelled (started in the root TaskGroup)."""
+        ...
+
+    async def wait_ready(self, timeout_s: float) -> None:
+        """Wait for what a mission needs: a position stream, home, flight mode and armed state.
+
+        Raises ``VehicleConnectionError`` naming what is missing after ``timeout_s``.
+        """
+        ...
+
+    def telemetry(self) -> TelemetrySnapshot:
+        """The latest sample of every stream (never blocks)."""
+        ...
+
+    async def arm(self) -> None: ...
+
+    async def takeoff(self, altitude_m: float) -> None:
+        """Autopilot takeoff to ``altitude_m`` above home (PX4: MIS_TAKEOFF_ALT; ArduPilot: GUIDED)."""
+        ...
+
+    async def start_offboard(self, yaw_rad: float) -> None:
+        """Send a zero-velocity setpoint, then switch to OFFBOARD (ArduPilot: GUIDED)."""
+        ...
+
+    async def set_velocity_ned(self, vel_ned_mps: Vec3, yaw_rad: float) -> None:
+        """One velocity setpoint in the local NED frame, yaw absolute."""
+        ...
+
+    async def hold(self) -> None:
+        """Switch to HOLD (PX4 AUTO.LOITER; ArduPilot BRAKE)."""
+        ...
+
+    async def stop_offboard(self) -> None:
+        """Leave offboard on our own account: zero velocity, then HOLD."""
+        ...
+
+    async def land(self) -> None: ...

@@ -1,0 +1,343 @@
+"""Multirotor point mass with attitude lag, a PX4-like velocity controller, drag, ground and battery.
+
+Frames and units: local NED (north, east, down) about home, metres, m/s, m/s²; roll/pitch/yaw in
+radians (ZYX Euler, yaw clockwise from north); times in seconds. Pure: ``step(dt_s, control)`` advances
+the state; there are no clock reads and the only randomness is the seeded wind.
+
+Model per step (PX4 ``PositionControl::_velocityControl`` / ``_accelerationControl``)::
+
+    e     = v_sp − v
+    a_sp  = K_p e + ∫K_i e − K_d a              (PID on acceleration, MPC_*_VEL_*_ACC)
+    |a_sp,xy| ≤ MPC_ACC_HOR_MAX                 tracking anti-windup: e_I = e − (2/K_p)(a_sp − a_lim)
+    z_b,sp = normalize(−a_x, −a_y, g − a_z)     tilt-limited to MPC_TILT_MAX
+    T      = (g − a_z) / cos(tilt_sp)           collective specific thrust, ≤ thrust_to_weight·g
+    φ, θ  ← first-order lag (τ) towards the setpoint attitude; ψ rate-limited towards ψ_sp
+    a      = −T z_b(φ, θ, ψ) + g e_D − c (v − v_wind)
+
+The hover thrust is known exactly (feed-forward g), so the integrators only have to reject drag and
+wind, which is what they do in PX4 too (there the hover-thrust estimator takes care of g).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from sim.wind import Vec3, Wind
+
+G_MPS2 = 9.80665
+
+
+@dataclass(frozen=True, slots=True)
+class BatteryParams:
+    """A LiPo pack: ``cells`` in series; the current scales with thrust^1.5 around hover."""
+
+    cells: int = 4
+    capacity_mah: float = 5000.0
+    hover_current_a: float = 15.0  # 5 Ah / 15 A = 20 min hover endurance
+    idle_current_a: float = 1.5
+    disarmed_current_a: float = 0.3
+    internal_resistance_ohm: float = 0.06
+    full_cell_v: float = 4.2
+    empty_cell_v: float = 3.5
+
+
+@dataclass(frozen=True, slots=True)
+class MultirotorParams:
+    """Controller gains and limits (PX4 parameter names in comments) and the airframe."""
+
+    xy_vel_p_acc: float = 1.8  # MPC_XY_VEL_P_ACC, 1/s
+    xy_vel_i_acc: float = 0.4  # MPC_XY_VEL_I_ACC, 1/s²
+    xy_vel_d_acc: float = 0.2  # MPC_XY_VEL_D_ACC, s (on the measured acceleration)
+    z_vel_p_acc: float = 4.0  # MPC_Z_VEL_P_ACC
+    z_vel_i_acc: float = 2.0  # MPC_Z_VEL_I_ACC
+    acc_hor_max_mps2: float = 5.0  # MPC_ACC_HOR_MAX
+    acc_up_max_mps2: float = 4.0  # MPC_ACC_UP_MAX
+    acc_down_max_mps2: float = 3.0  # MPC_ACC_DOWN_MAX
+    tilt_max_deg: float = 35.0  # MPC_TILT_MAX_AIR
+    vel_hor_max_mps: float = 12.0  # MPC_XY_VEL_MAX
+    vel_up_max_mps: float = 3.0  # MPC_Z_VEL_MAX_UP
+    vel_down_max_mps: float = 1.5  # MPC_Z_VEL_MAX_DN
+    xy_pos_p: float = 0.95  # MPC_XY_P, 1/s
+    z_pos_p: float = 1.0  # MPC_Z_P, 1/s
+    cruise_hor_mps: float = 5.0  # MPC_XY_CRUISE
+    attitude_tau_s: float = 0.08
+    yaw_p: float = 2.8  # MC_YAW_P, 1/s
+    yaw_rate_max_dps: float = 60.0  # MPC_YAWRAUTO_MAX-ish
+    drag_per_s: float = 0.3  # linear drag towards the air-relative velocity
+    thrust_to_weight: float = 2.0
+    battery: BatteryParams = field(default_factory=BatteryParams)
+
+
+@dataclass(frozen=True, slots=True)
+class ControlInput:
+    """What the flight stack asks of the vehicle for one step.
+
+    ``vel_sp_ned_mps`` is the velocity setpoint (NED, m/s); ``yaw_sp_rad`` an absolute yaw or ``None``
+    to keep the heading; ``yaw_rate_sp_radps`` overrides it when given. ``motors_on`` False = no thrust
+    (disarmed, or spinning at idle on the ground).
+    """
+
+    vel_sp_ned_mps: Vec3 = (0.0, 0.0, 0.0)
+    yaw_sp_rad: float | None = None
+    yaw_rate_sp_radps: float | None = None
+    motors_on: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleState:
+    """A snapshot of the truth (NED about home, SI units)."""
+
+    pos_ned_m: Vec3
+    vel_ned_mps: Vec3
+    acc_ned_mps2: Vec3
+    roll_rad: float
+    pitch_rad: float
+    yaw_rad: float
+    rates_radps: Vec3  # roll, pitch, yaw rates (Euler-angle derivatives)
+    on_ground: bool
+    thrust_mps2: float  # collective specific thrust
+    wind_ned_mps: Vec3
+
+
+def wrap_pi(angle_rad: float) -> float:
+    """Wrap to [−π, π)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+def velocity_from_position(
+    pos_sp_ned_m: Vec3,
+    pos_ned_m: Vec3,
+    params: MultirotorParams,
+    max_hor_mps: float | None = None,
+    max_up_mps: float | None = None,
+    max_down_mps: float | None = None,
+) -> Vec3:
+    """PX4 position P-controller: v_sp = K (p_sp − p), horizontally clamped to the cruise speed."""
+    vn = params.xy_pos_p * (pos_sp_ned_m[0] - pos_ned_m[0])
+    ve = params.xy_pos_p * (pos_sp_ned_m[1] - pos_ned_m[1])
+    vd = params.z_pos_p * (pos_sp_ned_m[2] - pos_ned_m[2])
+    v_max = params.cruise_hor_mps if max_hor_mps is None else max_hor_mps
+    v_h = math.hypot(vn, ve)
+    if v_h > v_max > 0.0:
+        vn, ve = vn * v_max / v_h, ve * v_max / v_h
+    up = params.vel_up_max_mps if max_up_mps is None else max_up_mps
+    down = params.vel_down_max_mps if max_down_mps is None else max_down_mps
+    return (vn, ve, _clamp(vd, -up, down))
+
+
+class Battery:
+    """Pack state: remaining charge drains with current; voltage = OCV(remaining) − R·I."""
+
+    def __init__(self, params: BatteryParams) -> None:
+        self.params = params
+        self.consumed_mah = 0.0
+        self.current_a = params.disarmed_current_a
+        self.voltage_v = self._ocv_v(1.0) - params.internal_resistance_ohm * self.current_a
+
+    @property
+    def remaining_frac(self) -> float:
+        return _clamp(1.0 - self.consumed_mah / self.params.capacity_mah, 0.0, 1.0)
+
+    def _ocv_v(self, remaining: float) -> float:
+        p = self.params
+        # A LiPo-like curve: flat in the middle, dropping towards empty.
+        cell_v = p.empty_cell_v + (p.full_cell_v - p.empty_cell_v) * (0.3 * remaining + 0.7 * remaining**2)
+        return p.cells * cell_v
+
+    def step(self, dt_s: float, thrust_mps2: float, motors_on: bool, armed: bool) -> None:
+        p = self.params
+        if motors_on and thrust_mps2 > 0.0:
+            self.current_a = max(p.idle_current_a, p.hover_current_a * (thrust_mps2 / G_MPS2) ** 1.5)
+        else:
+            self.current_a = p.idle_current_a if armed else p.disarmed_current_a
+        self.consumed_mah += self.current_a * dt_s / 3.6
+        self.voltage_v = self._ocv_v(self.remaining_frac) - p.internal_resistance_ohm * self.current_a
+
+
+class Dynamics:
+    """The vehicle: state, controller integrators, wind and battery; ``step`` is the only mover."""
+
+    def __init__(
+        self,
+        params: MultirotorParams | None = None,
+        wind: Wind | None = None,
+        pos_ned_m: Vec3 = (0.0, 0.0, 0.0),
+        yaw_rad: float = 0.0,
+    ) -> None:
+        self.params = params if params is not None else MultirotorParams()
+        self.wind = wind if wind is not None else Wind.off()
+        self.battery = Battery(self.params.battery)
+        self.ground_down_m = 0.0  # the ground/sea surface under the vehicle (home level)
+        self._p = list(pos_ned_m)
+        self._v = [0.0, 0.0, 0.0]
+        self._a = [0.0, 0.0, 0.0]
+        self._roll_rad = 0.0
+        self._pitch_rad = 0.0
+        self._yaw_rad = yaw_rad
+        self._rates = (0.0, 0.0, 0.0)
+        self._vel_int = [0.0, 0.0, 0.0]
+        self._thrust_mps2 = 0.0
+        self._on_ground = self._p[2] >= self.ground_down_m
+        self._wind_ned_mps = self.wind.wind_ned_mps
+
+    @property
+    def state(self) -> VehicleState:
+        p, v, a = self._p, self._v, self._a
+        return VehicleState(
+            pos_ned_m=(p[0], p[1], p[2]),
+            vel_ned_mps=(v[0], v[1], v[2]),
+            acc_ned_mps2=(a[0], a[1], a[2]),
+            roll_rad=self._roll_rad,
+            pitch_rad=self._pitch_rad,
+            yaw_rad=self._yaw_rad,
+            rates_radps=self._rates,
+            on_ground=self._on_ground,
+            thrust_mps2=self._thrust_mps2,
+            wind_ned_mps=self._wind_ned_mps,
+        )
+
+    @property
+    def vel_int_ned_mps2(self) -> Vec3:
+        """The velocity-controller integrator (the acceleration it adds to reject drag/wind)."""
+        i = self._vel_int
+        return (i[0], i[1], i[2])
+
+    def tilt_rad(self) -> float:
+        """Angle between the thrust axis and the vertical."""
+        return math.acos(_clamp(math.cos(self._roll_rad) * math.cos(self._pitch_rad), -1.0, 1.0))
+
+    def reset_integrators(self) -> None:
+        self._vel_int = [0.0, 0.0, 0.0]
+
+    # -- the controller ------------------------------------------------------------------------
+
+    def _acceleration_setpoint(self, vel_sp: Vec3, dt_s: float) -> tuple[float, float, float]:
+        """PID on acceleration with limits and anti-windup; returns a_sp (NED, m/s²)."""
+        pr = self.params
+        v_h = math.hypot(vel_sp[0], vel_sp[1])
+        vn_sp, ve_sp = vel_sp[0], vel_sp[1]
+        if v_h > pr.vel_hor_max_mps:
+            vn_sp, ve_sp = vn_sp * pr.vel_hor_max_mps / v_h, ve_sp * pr.vel_hor_max_mps / v_h
+        vd_sp = _clamp(vel_sp[2], -pr.vel_up_max_mps, pr.vel_down_max_mps)
+        e = (vn_sp - self._v[0], ve_sp - self._v[1], vd_sp - self._v[2])
+        # a_sp = K_p e + I − K_d a
+        ax = pr.xy_vel_p_acc * e[0] + self._vel_int[0] - pr.xy_vel_d_acc * self._a[0]
+        ay = pr.xy_vel_p_acc * e[1] + self._vel_int[1] - pr.xy_vel_d_acc * self._a[1]
+        az = pr.z_vel_p_acc * e[2] + self._vel_int[2]
+        a_h = math.hypot(ax, ay)
+        ax_lim, ay_lim = ax, ay
+        if a_h > pr.acc_hor_max_mps2:
+            ax_lim, ay_lim = ax * pr.acc_hor_max_mps2 / a_h, ay * pr.acc_hor_max_mps2 / a_h
+        az_lim = _clamp(az, -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
+        if not self._on_ground:
+            # Tracking anti-windup horizontally: e_I = e − (2/K_p)(a_sp − a_lim)
+            arw = 2.0 / pr.xy_vel_p_acc
+            ei_x = e[0] - arw * (ax - ax_lim)
+            ei_y = e[1] - arw * (ay - ay_lim)
+            # Vertically: stop integrating into the saturation.
+            ei_z = 0.0 if (az != az_lim and (az - az_lim) * e[2] > 0.0) else e[2]
+            self._vel_int[0] += pr.xy_vel_i_acc * ei_x * dt_s
+            self._vel_int[1] += pr.xy_vel_i_acc * ei_y * dt_s
+            self._vel_int[2] += pr.z_vel_i_acc * ei_z * dt_s
+            i_h = math.hypot(self._vel_int[0], self._vel_int[1])
+            if i_h > pr.acc_hor_max_mps2:
+                self._vel_int[0] *= pr.acc_hor_max_mps2 / i_h
+                self._vel_int[1] *= pr.acc_hor_max_mps2 / i_h
+            self._vel_int[2] = _clamp(self._vel_int[2], -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
+        return ax_lim, ay_lim, az_lim
+
+    def _attitude_setpoint(self, acc_sp: Vec3) -> tuple[float, float, float]:
+        """Roll, pitch (rad) and collective specific thrust (m/s²) for an acceleration setpoint."""
+        pr = self.params
+        # Specific force the thrust has to make: f = a_sp − g e_D; body z points along −f.
+        fz_up = G_MPS2 - acc_sp[2]  # > 0: upward thrust component needed
+        fx, fy = acc_sp[0], acc_sp[1]
+        f_h = math.hypot(fx, fy)
+        tilt_max_rad = math.radians(pr.tilt_max_deg)
+        tilt_rad = math.atan2(f_h, fz_up)
+        if tilt_rad > tilt_max_rad:
+            scale = fz_up * math.tan(tilt_max_rad) / f_h
+            fx, fy, tilt_rad = fx * scale, fy * scale, tilt_max_rad
+        norm = math.sqrt(fx * fx + fy * fy + fz_up * fz_up)
+        # −z_b = (fx, fy, −fz_up)/|f|; rotate into the heading frame to read off roll and pitch.
+        c, s = math.cos(self._yaw_rad), math.sin(self._yaw_rad)
+        # Thrust direction −z_b in the heading frame is (−sinθ cosφ, sinφ, cosθ cosφ).
+        thrust_fwd = (c * fx + s * fy) / norm
+        thrust_right = (-s * fx + c * fy) / norm
+        roll_sp = math.asin(_clamp(thrust_right, -1.0, 1.0))
+        pitch_sp = math.atan2(-thrust_fwd, fz_up / norm)
+        thrust = min(fz_up / math.cos(tilt_rad), pr.thrust_to_weight * G_MPS2)
+        return roll_sp, pitch_sp, max(thrust, 0.0)
+
+    # -- the step ------------------------------------------------------------------------------
+
+    def step(self, dt_s: float, control: ControlInput, armed: bool = True) -> None:
+        """Advance the vehicle by ``dt_s`` seconds under ``control``."""
+        if dt_s <= 0.0:
+            return
+        pr = self.params
+        wind = self.wind.step(dt_s)
+        self._wind_ned_mps = wind
+        roll0, pitch0, yaw0 = self._roll_rad, self._pitch_rad, self._yaw_rad
+
+        if control.motors_on:
+            acc_sp = self._acceleration_setpoint(control.vel_sp_ned_mps, dt_s)
+            roll_sp, pitch_sp, thrust = self._attitude_setpoint(acc_sp)
+        else:
+            self.reset_integrators()
+            roll_sp, pitch_sp, thrust = 0.0, 0.0, 0.0
+        if self._on_ground and not control.motors_on:
+            roll_sp = pitch_sp = 0.0
+
+        # Attitude: first-order lag on roll/pitch; yaw rate-limited P towards the setpoint.
+        k = 1.0 - math.exp(-dt_s / pr.attitude_tau_s)
+        self._roll_rad += k * (roll_sp - self._roll_rad)
+        self._pitch_rad += k * (pitch_sp - self._pitch_rad)
+        yaw_rate_max = math.radians(pr.yaw_rate_max_dps)
+        if control.yaw_rate_sp_radps is not None:
+            yaw_rate = _clamp(control.yaw_rate_sp_radps, -yaw_rate_max, yaw_rate_max)
+        elif control.yaw_sp_rad is not None:
+            yaw_rate = _clamp(pr.yaw_p * wrap_pi(control.yaw_sp_rad - self._yaw_rad), -yaw_rate_max, yaw_rate_max)
+        else:
+            yaw_rate = 0.0
+        if not control.motors_on and self._on_ground:
+            yaw_rate = 0.0
+        self._yaw_rad = wrap_pi(self._yaw_rad + yaw_rate * dt_s)
+        self._thrust_mps2 = thrust
+
+        # a = −T z_b + g e_D − c (v − v_wind), z_b from the *actual* attitude.
+        cr, sr = math.cos(self._roll_rad), math.sin(self._roll_rad)
+        cp, sp = math.cos(self._pitch_rad), math.sin(self._pitch_rad)
+        cy, sy = math.cos(self._yaw_rad), math.sin(self._yaw_rad)
+        zb = (cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr)
+        c = pr.drag_per_s
+        a = [
+            -thrust * zb[0] - c * (self._v[0] - wind[0]),
+            -thrust * zb[1] - c * (self._v[1] - wind[1]),
+            -thrust * zb[2] + G_MPS2 - c * (self._v[2] - wind[2]),
+        ]
+        if self._on_ground and a[2] >= 0.0:
+            a = [0.0, 0.0, 0.0]  # resting on the ground: friction holds it
+        for i in range(3):
+            self._v[i] += a[i] * dt_s
+            self._p[i] += self._v[i] * dt_s
+        if self._p[2] >= self.ground_down_m:
+            self._p[2] = self.ground_down_m
+            if self._v[2] >= 0.0:
+                self._v = [0.0, 0.0, 0.0]
+                a = [0.0, 0.0, 0.0]
+                self._on_ground = True
+        else:
+            self._on_ground = False
+        self._a = a
+        self._rates = (
+            (self._roll_rad - roll0) / dt_s,
+            (self._pitch_rad - pitch0) / dt_s,
+            wrap_pi(self._yaw_rad - yaw0) / dt_s,
+        )
+        self.battery.step(dt_s, thrust, control.motors_on, armed)

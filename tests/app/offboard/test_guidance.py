@@ -1,0 +1,44 @@
+"""Constant-bearing guidance reproduces thesis eqs. 2.19–2.21."""
+
+import math
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from app.offboard.guidance import ConstantBearingParams, approach_speed_mps, constant_bearing_velocity
+
+P = ConstantBearingParams(approach_speed_max_mps=2.0, transient_distance_m=0.5)
+
+
+def test_kappa_matches_eq_2_21_by_hand():
+    # ‖p̃‖ = 1.2 m: κ = 2.0·1.2/sqrt(1.44 + 0.25) = 2.4/1.3 = 1.846153…
+    assert approach_speed_mps(1.2, P) == pytest.approx(2.4 / 1.3, rel=1e-12)
+
+
+def test_far_from_target_approach_speed_tends_to_u_max():
+    assert approach_speed_mps(1000.0, P) == pytest.approx(2.0, rel=1e-6)
+
+
+def test_near_target_law_is_proportional_with_gain_u_over_delta():
+    assert approach_speed_mps(1e-3, P) == pytest.approx(1e-3 * 2.0 / 0.5, rel=1e-5)
+
+
+def test_velocity_points_at_target_plus_target_velocity_feedforward():
+    # Vehicle 3 m south and 4 m west of the target: p̃ = (-3, -4, 0), ‖p̃‖ = 5.
+    v = constant_bearing_velocity((0.0, 0.0, -5.0), (3.0, 4.0, -5.0), (0.5, -0.25, 0.0), P)
+    kappa = 2.0 * 5.0 / math.sqrt(25.0 + 0.25)
+    assert v == pytest.approx((kappa * 3 / 5 + 0.5, kappa * 4 / 5 - 0.25, 0.0), rel=1e-12)
+
+
+def test_on_target_only_the_feedforward_remains():
+    assert constant_bearing_velocity((1.0, 2.0, -3.0), (1.0, 2.0, -3.0), (0.3, 0.1, 0.0), P) == (0.3, 0.1, 0.0)
+
+
+@given(
+    st.tuples(*[st.floats(-500, 500)] * 3),
+    st.tuples(*[st.floats(-500, 500)] * 3),
+)
+def test_approach_component_never_exceeds_u_max(p, pt):
+    v = constant_bearing_velocity(p, pt, (0.0, 0.0, 0.0), P)
+    assert math.sqrt(sum(c * c for c in v)) <= 2.0 + 1e-9

@@ -1,0 +1,49 @@
+"""Settings load from YAML; a bad field names its YAML path and allowed range, and nothing loads."""
+
+import pytest
+
+from app.errors import ConfigError
+from app.settings import load_settings
+
+
+def test_default_profile_loads():
+    s = load_settings()
+    assert s.guidance.setpoint_rate_hz >= 20 and s.connection.url.startswith("udpin://0.0.0.0:")
+
+
+def test_out_of_range_field_names_path_and_range(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text("envelope:\n  max_horizontal_speed_mps: 40\n")
+    with pytest.raises(ConfigError) as e:
+        load_settings(p)
+    assert e.value.path == "envelope.max_horizontal_speed_mps"
+    assert "got 40" in e.value.message and "allowed 0.1..20.0 m/s" in e.value.message
+
+
+def test_setpoint_rate_below_20_hz_is_refused(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text("guidance:\n  setpoint_rate_hz: 10\n")
+    with pytest.raises(ConfigError, match=r"guidance.setpoint_rate_hz: .*allowed 20.0..100.0 Hz"):
+        load_settings(p)
+
+
+def test_misspelt_field_lists_known_fields(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text("runner:\n  tick_hz: 10\n")
+    with pytest.raises(ConfigError) as e:
+        load_settings(p)
+    assert e.value.path == "runner.tick_hz" and "known fields: mode_confirm_timeout_s, tick_rate_hz" in e.value.message
+
+
+def test_wrong_type_is_reported(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text("telemetry:\n  position_rate_hz: fast\n")
+    with pytest.raises(ConfigError, match=r"telemetry.position_rate_hz: .*got 'fast'"):
+        load_settings(p)
+
+
+def test_not_yaml_is_reported(tmp_path):
+    p = tmp_path / "s.yaml"
+    p.write_text("envelope: [unclosed\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_settings(p)
