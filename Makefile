@@ -1,0 +1,30 @@
+# The README's commands. Each target installs what it needs into .venv first.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+RUN_DIR ?= runs/demo
+
+.PHONY: setup demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+demo: $(STAMP)   ## fly the default simulated mission (circle) and print its summary
+	$(BIN)/python -m app.main --mission circle.yaml --sim --run-dir $(RUN_DIR)
+	@cat $(RUN_DIR)/summary.json
+
+test: $(STAMP)   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check app sim tests
+	$(BIN)/mypy
+
+clean:
+	rm -rf runs .pytest_cache .mypy_cache .ruff_cache
