@@ -39,8 +39,8 @@ class ModeWatch:
     def expect(self, modes: frozenset[FlightMode], t_s: float) -> None:
         self.expected, self.since_s, self.confirmed = modes, t_s, False
 
-    def clear(self) -> None:
-        self.expected, self.confirmed = None, False
+    def clear(self, t_s: float) -> None:
+        self.expected, self.since_s, self.confirmed = None, t_s, False
 
 
 @dataclass
@@ -123,9 +123,12 @@ class MissionRunner:
         mode = tel.mode()
         if spec.flying and tel.is_armed():
             w = self._watch
-            if w.expected is not None and not w.confirmed and mode in w.expected:
+            # Only a mode sample received after our last mode command can confirm or contradict it
+            # (ArduPilot heartbeats come at 1 Hz: the snapshot may still show the mode before it).
+            fresh = tel.flight_mode is not None and tel.flight_mode.t_s >= w.since_s
+            if fresh and w.expected is not None and not w.confirmed and mode in w.expected:
                 w.confirmed = True
-            if mode in PILOT_MODES or (w.confirmed and w.expected is not None and mode not in w.expected):
+            if fresh and (mode in PILOT_MODES or (w.confirmed and w.expected is not None and mode not in w.expected)):
                 await self._take_over(mode)
                 return
             if w.expected is not None and not w.confirmed and now_s - w.since_s > self._confirm_timeout_s:
@@ -151,7 +154,7 @@ class MissionRunner:
 
     async def _take_over(self, mode: FlightMode) -> None:
         self._taken_over_from = self.state
-        self._watch.clear()
+        self._watch.clear(self._clock.now_s())
         if self.vehicle.autopilot == Autopilot.PX4:
             self.setpoints.standby()
         else:

@@ -32,7 +32,7 @@ def test_builtin_circle_loads_by_name_and_by_file_name():
 
 
 def test_unknown_mission_lists_the_builtin_ones():
-    with pytest.raises(MissionTableError, match="built-in missions: .*circle"):
+    with pytest.raises(MissionTableError, match=r"built-in missions: .*circle"):
         load_mission("nope")
 
 
