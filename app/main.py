@@ -117,7 +117,7 @@ async def fly_mission(
         vehicle,
         clock,
         events,
-        ConstantBearingParams(g.approach_speed_max_mps, g.transient_distance_m),
+        ConstantBearingParams(g.approach_speed_max_mps, g.transient_distance_m, g.velocity_lead_s),
         EnvelopeLimits(**e.model_dump()),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

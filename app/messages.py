@@ -129,12 +129,13 @@ class TargetState:
     t_s: float
     pos_ned_m: Vec3
     vel_ned_mps: Vec3
+    acc_ned_mps2: Vec3 = (0.0, 0.0, 0.0)
 
     def predict(self, t_s: float) -> TargetState:
-        """Constant-velocity extrapolation to ``t_s``."""
+        """Constant-velocity extrapolation to ``t_s`` (acceleration kept, not integrated)."""
         dt_s = t_s - self.t_s
         p = tuple(p + v * dt_s for p, v in zip(self.pos_ned_m, self.vel_ned_mps, strict=True))
-        return TargetState(t_s, (p[0], p[1], p[2]), self.vel_ned_mps)
+        return TargetState(t_s, (p[0], p[1], p[2]), self.vel_ned_mps, self.acc_ned_mps2)
 
 
 def norm(v: Vec3) -> float:

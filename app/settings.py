@@ -60,6 +60,12 @@ class GuidanceSettings(_Model):
     transient_distance_m: float = Field(
         0.5, ge=0.01, le=20.0, description="Δ_p̃ of constant-bearing guidance (thesis eq. 2.21), m"
     )
+    velocity_lead_s: float = Field(
+        0.0,
+        ge=0.0,
+        le=2.0,
+        description="target-acceleration feed-forward τ_lead, ≈ the autopilot velocity-loop lag; 0: thesis law, s",
+    )
     setpoint_rate_hz: float = Field(50.0, ge=20.0, le=100.0, description="offboard setpoint loop rate, Hz")
     standby_rate_hz: float = Field(
         5.0,

@@ -72,7 +72,9 @@ class CircleTarget:
         # (5.4a–f)
         pos = (x0 + r * (-1.0 + math.cos(th)), y0 + r * math.sin(th), z0)
         vel = (-math.sin(th) * r / vr, math.cos(th) * r / vr, 0.0)
-        return TargetState(t_s, pos, vel)
+        # d/dt of (5.4d–e): the centripetal acceleration
+        acc = (-math.cos(th) * r / vr**2, -math.sin(th) * r / vr**2, 0.0)
+        return TargetState(t_s, pos, vel, acc)
 
     def observe(self, sample: PositionVelocityNed) -> None:
         if sample.t_s - self.t0_s < self.settle_s:

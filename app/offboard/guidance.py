@@ -5,6 +5,10 @@
     v_a = −κ · p̃ / ‖p̃‖                          approach velocity, NED m/s        (2.20)
     v_d = v_a + v_t                              desired velocity, NED m/s         (2.19)
 
+Optional lead (off when ``velocity_lead_s`` = 0, the thesis law): the autopilot's velocity loop lags its
+setpoint by roughly its time constant τ, so a target that turns is followed with a lag of τ·a_t. Adding
+``velocity_lead_s · a_t`` to the feed-forward (v_d = v_a + v_t + τ_lead·a_t) cancels most of that lag.
+
 Far from the target the vehicle closes at U_a,max; within Δ the approach speed falls off linearly
 (κ ≈ U_a,max·‖p̃‖/Δ), so near the target the law is a proportional controller with gain U_a,max/Δ plus
 the target-velocity feed-forward. Saturation to the vehicle's limits is the envelope's job.
@@ -22,6 +26,7 @@ from app.messages import Vec3
 class ConstantBearingParams:
     approach_speed_max_mps: float  # U_a,max
     transient_distance_m: float  # Δ_p̃
+    velocity_lead_s: float = 0.0  # τ_lead: target-acceleration feed-forward, s (0: thesis eq. 2.19)
 
 
 def approach_speed_mps(distance_m: float, params: ConstantBearingParams) -> float:
@@ -33,9 +38,21 @@ def approach_speed_mps(distance_m: float, params: ConstantBearingParams) -> floa
 
 
 def constant_bearing_velocity(
-    pos_ned_m: Vec3, target_pos_ned_m: Vec3, target_vel_ned_mps: Vec3, params: ConstantBearingParams
+    pos_ned_m: Vec3,
+    target_pos_ned_m: Vec3,
+    target_vel_ned_mps: Vec3,
+    params: ConstantBearingParams,
+    target_acc_ned_mps2: Vec3 = (0.0, 0.0, 0.0),
 ) -> Vec3:
     """Desired vehicle velocity (NED, m/s) toward a target moving at ``target_vel_ned_mps``."""
+    lead = params.velocity_lead_s
+    if lead:
+        # v_t + τ_lead·a_t
+        target_vel_ned_mps = (
+            target_vel_ned_mps[0] + lead * target_acc_ned_mps2[0],
+            target_vel_ned_mps[1] + lead * target_acc_ned_mps2[1],
+            target_vel_ned_mps[2] + lead * target_acc_ned_mps2[2],
+        )
     # p̃ = p − p_t
     p_err = (
         pos_ned_m[0] - target_pos_ned_m[0],

@@ -160,7 +160,9 @@ class SetpointLoop:
             pv.pos_ned_m[1] + pv.vel_ned_mps[1] * dt_s,
             pv.pos_ned_m[2] + pv.vel_ned_mps[2] * dt_s,
         )
-        desired = constant_bearing_velocity(pos_now, target.pos_ned_m, target.vel_ned_mps, self._guidance)
+        desired = constant_bearing_velocity(
+            pos_now, target.pos_ned_m, target.vel_ned_mps, self._guidance, target.acc_ned_mps2
+        )
         home = tel.home_ned_m or (0.0, 0.0, 0.0)
         clamped = apply_envelope(desired, pv.pos_ned_m, home, self._limits, allow_below_min=self._allow_below_min)
         self._events.write(

@@ -42,3 +42,11 @@ def test_on_target_only_the_feedforward_remains():
 def test_approach_component_never_exceeds_u_max(p, pt):
     v = constant_bearing_velocity(p, pt, (0.0, 0.0, 0.0), P)
     assert math.sqrt(sum(c * c for c in v)) <= 2.0 + 1e-9
+
+
+def test_lead_adds_tau_times_target_acceleration_to_the_feedforward():
+    lead = ConstantBearingParams(2.0, 0.5, velocity_lead_s=0.6)
+    v = constant_bearing_velocity((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), lead, (0.0, -0.25, 0.0))
+    assert v == pytest.approx((1.0, -0.15, 0.0))
+    # Without lead the acceleration is ignored (thesis eq. 2.19).
+    assert constant_bearing_velocity((0, 0, 0), (0, 0, 0), (1.0, 0, 0), P, (0, -0.25, 0)) == (1.0, 0, 0)
