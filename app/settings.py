@@ -58,10 +58,10 @@ class GuidanceSettings(_Model):
         2.0, ge=0.1, le=15.0, description="U_a,max of constant-bearing guidance (thesis eq. 2.21), m/s"
     )
     transient_distance_m: float = Field(
-        0.5, ge=0.01, le=20.0, description="Δ_p̃ of constant-bearing guidance (thesis eq. 2.21), m"
+        0.4, ge=0.01, le=20.0, description="Δ_p̃ of constant-bearing guidance (thesis eq. 2.21), m"
     )
     velocity_lead_s: float = Field(
-        0.0,
+        0.7,
         ge=0.0,
         le=2.0,
         description="target-acceleration feed-forward τ_lead, ≈ the autopilot velocity-loop lag; 0: thesis law, s",
