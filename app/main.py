@@ -161,9 +161,10 @@ async def fly_mission(
     return Flight(result, clock.now_s() - t_start_s, vehicle.autopilot.value, setpoints.sent, runner.tracking.summary())
 
 
-async def connect_and_fly(url: str, table: MissionTable, settings: Settings, events: EventLog) -> Flight:
-    from app.offboard.mavsdk_vehicle import MavsdkVehicle  # mavsdk loads its native library on import
+async def connect_and_fly(url: str, table: MissionTable, settings: Settings, events: EventLog, run_dir: Path) -> Flight:
+    from app.offboard.mavsdk_vehicle import MavsdkVehicle, route_mavsdk_log  # loads the native library
 
+    route_mavsdk_log(run_dir / "mavsdk.log")
     clock = LoopClock()
     async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
         return await fly_mission(vehicle, table, settings, clock, events)
@@ -204,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
         "started_utc": stamp,
     }
     try:
-        flight = asyncio.run(connect_and_fly(url, table, settings, events))
+        flight = asyncio.run(connect_and_fly(url, table, settings, events, run_dir))
         summary.update(
             outcome=flight.result.outcome,
             reason=flight.result.reason,

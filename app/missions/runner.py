@@ -76,6 +76,7 @@ class MissionRunner:
         self._entry_t_s = 0.0
         self._taken_over_from: str | None = None
         self._abort_requested = False
+        self._abort_reason = ""
         self._result: RunResult | None = None
         self.states_visited: list[str] = []
 
@@ -92,6 +93,7 @@ class MissionRunner:
     def request_abort(self, reason: str) -> None:
         if not self._abort_requested:
             self._events.write(self._clock.now_s(), "run", event="abort_requested", reason=reason)
+            self._abort_reason = reason
         self._abort_requested = True
 
     @property
@@ -140,14 +142,15 @@ class MissionRunner:
         if self._abort_requested and not any(t.when == "abort_requested" for t in spec.transitions):
             # A state that does not handle the request itself goes to ABORT (commands are skipped there
             # while the pilot has control).
-            await self._enter(self.table.abort_state, "abort requested")
+            await self._enter(self.table.abort_state, f"abort requested ({self._abort_reason})")
             return
         if spec.manual and mode == FlightMode.OFFBOARD and tel.is_armed():
             await self._hand_back()
             return
         for t in spec.transitions:
             if GUARDS[t.when](ctx):
-                await self._enter(t.to, t.when)
+                why = f"abort requested ({self._abort_reason})" if t.when == "abort_requested" else t.when
+                await self._enter(t.to, why)
                 return
         if spec.timeout_s is not None and spec.on_timeout and now_s - self._entry_t_s >= spec.timeout_s:
             await self._enter(spec.on_timeout, f"timeout {spec.timeout_s:g} s in {self.state}")

@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import asyncio
 import math
+import sys
+import threading
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk, MavsdkError
@@ -24,6 +27,7 @@ from mavsdk.asyncio.autopilot import Autopilot as MavAutopilot
 from mavsdk.asyncio.plugins.action import ActionAsync, ActionError
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, OffboardError, VelocityNedYaw
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.logging import LogLevel, log_subscribe
 
 from app.clock import Clock
 from app.errors import VehicleConnectionError, VehicleError
@@ -41,6 +45,26 @@ from app.messages import (
 from app.settings import ConnectionSettings, TelemetrySettings
 
 ARM_RETRY_PERIOD_S = 1.0
+
+
+def route_mavsdk_log(path: Path | None) -> None:
+    """Send MAVSDK's own log lines (C library threads) to ``path`` instead of the terminal.
+
+    Only warnings and errors are kept when ``path`` is None, printed to stderr.
+    """
+    lock = threading.Lock()
+    out = path.open("a", buffering=1) if path else None
+
+    def on_log(level: LogLevel, message: str, file: str | None, line: int) -> bool:
+        text = f"[{level.name}] {message}\n"
+        with lock:
+            if out is not None:
+                out.write(text)
+            elif level >= LogLevel.WARN:
+                sys.stderr.write("mavsdk: " + text)
+        return True  # suppress MAVSDK's default printing
+
+    log_subscribe(on_log)
 
 
 def _finite(*xs: float) -> bool:
