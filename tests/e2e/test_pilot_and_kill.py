@@ -12,6 +12,7 @@ from tests.e2e.cliutil import (
     free_udp_port,
     pilot,
     popen,
+    read_jsonl,
     sim_modes,
     start_sim,
     states,
@@ -59,6 +60,13 @@ def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tm
         time.sleep(5.0)
         after = [m for m in sim_modes(tmp_path) if m["t_wall"] > switch["t_wall"]]
         assert after == [], after
+        commands = [
+            e
+            for e in read_jsonl(tmp_path / "sim_state.jsonl")
+            if e.get("event") == "command" and e.get("source") == "link" and e["t_wall"] > switch["t_wall"]
+        ]
+        assert commands == [], commands  # the app sent no command at all while the pilot had control
+        print(f"takeover seen by the app {latency_s * 1000:.0f} ms after the pilot's switch")
         assert states(events)[-1]["to"] == "MANUAL"
 
         # Handback: the pilot selects OFFBOARD (possible on PX4 thanks to the standby stream).
@@ -97,5 +105,6 @@ def test_killed_app_leaves_the_vehicle_in_hold_within_1_5_s(tmp_path, sim):
         assert hold is not None
         assert hold["t_wall"] - t_kill_wall <= 1.5
         assert hold.get("reason") == "offboard_loss"
+        print(f"vehicle in HOLD {hold['t_wall'] - t_kill_wall:.3f} s after the app was killed")
     finally:
         stop(app, signal.SIGKILL)

@@ -32,7 +32,9 @@ def test_quarter_lap_by_hand():
 def test_velocity_is_the_derivative_of_position():
     c, t, h = circle(), 117.3, 1e-5
     a, b = c.target_at(t - h).pos_ned_m, c.target_at(t + h).pos_ned_m
-    assert c.target_at(t).vel_ned_mps == pytest.approx(tuple((y - x) / (2 * h) for x, y in zip(a, b)), abs=1e-6)
+    assert c.target_at(t).vel_ned_mps == pytest.approx(
+        tuple((y - x) / (2 * h) for x, y in zip(a, b, strict=True)), abs=1e-6
+    )
 
 
 def test_errors_only_after_settle_and_against_the_target_at_the_sample_time():

@@ -1,0 +1,154 @@
+"""In-process vehicle: the app's Vehicle protocol on the simulated stack, in virtual (loop) time."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+from collections.abc import AsyncIterator, Callable
+from contextlib import asynccontextmanager
+
+import pytest
+
+from app.errors import VehicleConnectionError, VehicleError
+from app.messages import Autopilot, FlightMode, LandedState
+from app.offboard.vehicle import Vehicle
+from sim.autopilot_modes import Profile
+from sim.inproc import InProcessVehicle
+from sim.wind import WindConfig
+
+pytestmark = pytest.mark.looptime
+
+
+@pytest.fixture
+def vehicle() -> InProcessVehicle:
+    # Built here but started inside each test: looptime virtualises the test's loop time only.
+    return InProcessVehicle(seed=2, wind=WindConfig(mean_mps=4.0, gust_sigma_mps=0.5))
+
+
+@asynccontextmanager
+async def running(v: InProcessVehicle) -> AsyncIterator[InProcessVehicle]:
+    task = asyncio.create_task(v.run())
+    try:
+        await v.wait_ready(timeout_s=5.0)
+        yield v
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+
+async def until(predicate: Callable[[], bool], timeout_s: float, period_s: float = 0.05) -> None:
+    """Poll ``predicate`` on the loop clock; fail after ``timeout_s``."""
+    for _ in range(round(timeout_s / period_s)):
+        if predicate():
+            return
+        await asyncio.sleep(period_s)
+    raise AssertionError(f"not reached within {timeout_s} s")
+
+
+async def wait_mode(v: InProcessVehicle, mode: FlightMode, timeout_s: float) -> None:
+    await until(lambda: v.telemetry().mode() is mode, timeout_s)
+
+
+async def fly_up(v: InProcessVehicle, altitude_m: float = 5.0) -> None:
+    await v.arm()
+    await v.takeoff(altitude_m)
+    await wait_mode(v, FlightMode.HOLD, 15.0)
+
+
+def test_it_implements_the_vehicle_protocol() -> None:
+    vehicle: Vehicle = InProcessVehicle()  # a type error here means the protocol drifted
+    assert vehicle.autopilot is Autopilot.PX4
+    assert InProcessVehicle(profile=Profile.ARDUPILOT).autopilot is Autopilot.ARDUPILOT
+
+
+async def test_wait_ready_needs_home_and_times_out_with_a_reason() -> None:
+    v = InProcessVehicle(gps_fix_delay_s=30.0)
+    with pytest.raises(VehicleConnectionError, match="home"):
+        await v.wait_ready(timeout_s=2.0)
+
+
+async def test_telemetry_is_stamped_with_loop_time(vehicle: InProcessVehicle) -> None:
+    async with running(vehicle):
+        await asyncio.sleep(1.0)
+        snap = vehicle.telemetry()
+        now_s = asyncio.get_running_loop().time()
+        assert snap.pos_vel is not None and snap.attitude is not None and snap.flight_mode is not None
+        assert now_s - 0.02 <= snap.pos_vel.t_s <= now_s
+        assert snap.mode() is FlightMode.HOLD and not snap.is_armed()
+        assert snap.landed_state is not None and snap.landed_state.value is LandedState.ON_GROUND
+        assert snap.home_ned_m == (0.0, 0.0, 0.0)
+
+
+async def test_takeoff_offboard_velocity_stop_and_land(vehicle: InProcessVehicle) -> None:
+    async with running(vehicle):
+        await fly_up(vehicle, 5.0)
+        assert vehicle.telemetry().height_above_home_m() == pytest.approx(5.0, abs=0.3)
+        await vehicle.start_offboard(yaw_rad=0.0)
+        assert vehicle.telemetry().mode() is FlightMode.OFFBOARD
+        north0_m = vehicle.truth().pos_ned_m[0]
+        for _ in range(150):  # 3 s at 50 Hz
+            await vehicle.set_velocity_ned((2.0, 0.0, 0.0), 0.0)
+            await asyncio.sleep(0.02)
+        assert vehicle.truth().pos_ned_m[0] - north0_m > 4.0
+        await vehicle.stop_offboard()
+        assert vehicle.telemetry().mode() is FlightMode.HOLD
+        await asyncio.sleep(3.0)
+        assert math.hypot(*vehicle.truth().vel_ned_mps[:2]) < 0.3
+        await vehicle.land()
+        await until(lambda: not vehicle.telemetry().is_armed(), 20.0)
+        assert vehicle.truth().landed_state is LandedState.ON_GROUND
+
+
+async def test_refused_commands_raise_vehicle_error(vehicle: InProcessVehicle) -> None:
+    async with running(vehicle):
+        with pytest.raises(VehicleError) as err:
+            await vehicle.takeoff(5.0)  # disarmed
+        assert err.value.command == "takeoff" and err.value.result == "COMMAND_DENIED"
+        await fly_up(vehicle)
+        vehicle.pilot_set_mode(FlightMode.POSCTL)
+        assert vehicle.telemetry().mode() is FlightMode.POSCTL
+
+
+async def test_mavsdk_resend_keeps_offboard_alive_until_the_stream_stops(vehicle: InProcessVehicle) -> None:
+    async with running(vehicle):
+        await fly_up(vehicle)
+        await vehicle.start_offboard(yaw_rad=0.0)
+        await vehicle.set_velocity_ned((1.0, 0.0, 0.0), 0.0)
+        await asyncio.sleep(5.0)  # the app sends nothing; "MAVSDK" re-sends the last setpoint
+        assert vehicle.telemetry().mode() is FlightMode.OFFBOARD
+        vehicle.stop_setpoint_stream()  # the companion computer stalls
+        await asyncio.sleep(1.2)
+        assert vehicle.telemetry().mode() is FlightMode.HOLD
+        assert any(e.kind == "mode" and e.reason == "offboard_loss" for e in vehicle.events)
+
+
+async def test_pilot_switch_away_from_offboard_ends_the_resend_after_the_watchdog(
+    vehicle: InProcessVehicle,
+) -> None:
+    async with running(vehicle):
+        await fly_up(vehicle)
+        await vehicle.start_offboard(yaw_rad=0.0)
+        await asyncio.sleep(4.0)
+        vehicle.pilot_set_mode(FlightMode.POSCTL)
+        await asyncio.sleep(0.5)
+        assert vehicle._stream is None  # MAVSDK's watchdog: not OFFBOARD and >3 s since the stream started
+        with pytest.raises(VehicleError):
+            vehicle.pilot_set_mode(FlightMode.OFFBOARD)  # no stream, so OFFBOARD is not available
+
+
+async def test_ardupilot_takeoff_goes_through_guided() -> None:
+    v = InProcessVehicle(profile=Profile.ARDUPILOT, wind=WindConfig.off())
+    task = asyncio.create_task(v.run())
+    try:
+        await v.wait_ready(5.0)
+        await v.arm()
+        await v.takeoff(4.0)
+        assert v.telemetry().mode() is FlightMode.OFFBOARD  # GUIDED
+        await asyncio.sleep(6.0)
+        assert v.telemetry().height_above_home_m() == pytest.approx(4.0, abs=0.2)
+        await v.hold()
+        assert v.telemetry().mode() is FlightMode.HOLD  # BRAKE
+    finally:
+        task.cancel()
