@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 Vec3 = tuple[float, float, float]
+_BATCH = 512
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,6 +54,8 @@ class Wind:
         self.config = config if config is not None else WindConfig()
         self._rng = np.random.default_rng(seed)
         self._mean_ned_mps = self.config.mean_ned_mps()
+        self._draws: list[list[float]] = []  # N(0, 1) drawn in batches (numpy per call is slow)
+        self._next_draw = 0
         sigma = self.config
         # Start the gusts in their stationary distribution, so there is no warm-up transient.
         self._gust_ned_mps = [
@@ -77,17 +80,22 @@ class Wind:
         if dt_s <= 0.0:
             return self.wind_ned_mps
         c = self.config
-        w = self._rng.standard_normal(3)
+        if self._next_draw >= len(self._draws):
+            self._draws = self._rng.standard_normal((_BATCH, 3)).tolist()
+            self._next_draw = 0
+        w = self._draws[self._next_draw]
+        self._next_draw += 1
         for axis, (sigma_mps, tau_s) in enumerate(
-            ((c.gust_sigma_mps, c.gust_tau_s), (c.gust_sigma_mps, c.gust_tau_s),
-             (c.vertical_sigma_mps, c.vertical_tau_s))
+            (
+                (c.gust_sigma_mps, c.gust_tau_s),
+                (c.gust_sigma_mps, c.gust_tau_s),
+                (c.vertical_sigma_mps, c.vertical_tau_s),
+            )
         ):
             if sigma_mps <= 0.0:
                 self._gust_ned_mps[axis] = 0.0
                 continue
             # φ = exp(−dt/τ); g ← φ g + σ √(1 − φ²) w
             phi = math.exp(-dt_s / tau_s)
-            self._gust_ned_mps[axis] = phi * self._gust_ned_mps[axis] + sigma_mps * math.sqrt(
-                1.0 - phi * phi
-            ) * float(w[axis])
+            self._gust_ned_mps[axis] = phi * self._gust_ned_mps[axis] + sigma_mps * math.sqrt(1.0 - phi * phi) * w[axis]
         return self.wind_ned_mps

@@ -47,6 +47,17 @@ def test_circle_mission_without_wind_meets_the_thesis_anchor(tmp_path):
     assert s["tracking_error_p95_m"] <= 0.04
 
 
+def test_circle_mission_completes_against_the_ardupilot_profile(tmp_path):
+    """ArduCopter semantics: nothing streams unasked, GUIDED is offboard, BRAKE is HOLD."""
+    proc, s = fly(tmp_path, "--sim-profile", "ardupilot", "--seed", "5")
+    assert proc.returncode == 0, proc.stderr + json.dumps(s)
+    assert s["autopilot"] == "ARDUPILOT" and s["outcome"] == "completed"
+    assert s["tracking_error_p95_m"] <= 0.10
+    lines = [json.loads(x) for x in (tmp_path / "run" / "events.jsonl").read_text().splitlines()]
+    rates = {e["stream"] for e in lines if e.get("event") == "rate"}
+    assert {"position_velocity_ned", "attitude_euler", "home", "landed_state"} <= rates
+
+
 def test_invalid_mission_file_is_refused_before_connecting(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text((ROOT / "app/missions/circle.yaml").read_text().replace("circle_laps_done", "laps_done"))
