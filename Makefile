@@ -8,7 +8,10 @@ RUN_DIR ?= runs/demo
 .PHONY: setup demo test lint bench clean
 
 $(STAMP): pyproject.toml
-	$(PY) -m venv $(VENV)
+	@# A bare Debian has python3 but may lack venv/ensurepip: install it with apt-get (as root or via sudo).
+	$(PY) -m venv $(VENV) || { rm -rf $(VENV); \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -q && $$SUDO apt-get install -y -q python3-venv python3-pip && $(PY) -m venv $(VENV); }
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)

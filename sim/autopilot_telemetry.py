@@ -244,6 +244,8 @@ class TelemetryEncoder:
         home, geo = st.home_ned_m, st.home_geo
         if home is None or geo is None:
             return None
+        if st.profile is Profile.ARDUPILOT:
+            home = (0.0, 0.0, 0.0)  # ArduCopter leaves x, y, z at 0 (its local origin is the EKF origin)
         return self._mav.home_position_encode(
             int(geo.lat_deg * 1e7),
             int(geo.lon_deg * 1e7),

@@ -31,6 +31,7 @@ from mavsdk.logging import LogLevel, log_subscribe
 
 from app.clock import Clock
 from app.errors import VehicleConnectionError, VehicleError
+from app.estimators.geodesy import ned_offset_m
 from app.eventlog import EventLog
 from app.messages import (
     AttitudeEuler,
@@ -45,6 +46,9 @@ from app.messages import (
 from app.settings import ConnectionSettings, TelemetrySettings
 
 ARM_RETRY_PERIOD_S = 1.0
+# PX4 denies arming while pre-arm checks fail; ArduCopter answers MAV_RESULT_FAILED for the same.
+ARM_RETRY_RESULTS = frozenset({"COMMAND_DENIED", "FAILED", "BUSY"})
+HOME_CHANGE_M = 0.5  # a home estimate that moves less than this is not re-published
 
 
 def route_mavsdk_log(path: Path | None) -> None:
@@ -94,6 +98,8 @@ class MavsdkVehicle:
         self._offboard = OffboardAsync(system)
         self._snapshot = TelemetrySnapshot()
         self._autopilot = Autopilot.UNKNOWN
+        self._global_pair: tuple[Any, Vec3] | None = None
+        self._home_global: Any = None
 
     # ---- construction -------------------------------------------------------------------------
 
@@ -144,6 +150,7 @@ class MavsdkVehicle:
             tg.create_task(self._consume_armed(), name="vehicle.armed")
             tg.create_task(self._consume_landed(), name="vehicle.landed_state")
             tg.create_task(self._consume_home(), name="vehicle.home")
+            tg.create_task(self._consume_global(), name="vehicle.global_position")
 
     async def _request_rates(self) -> None:
         t = self._tel_settings
@@ -209,12 +216,38 @@ class MavsdkVehicle:
         async for h in self._telemetry.subscribe_home():
             self._set_home(h)
 
+    async def _consume_global(self) -> None:
+        async for p in self._telemetry.subscribe_position():
+            if _finite(p.latitude_deg, p.longitude_deg, p.absolute_altitude_m) and self._snapshot.pos_vel:
+                # A global fix paired with the local position received just before it.
+                self._global_pair = (p, self._snapshot.pos_vel.pos_ned_m)
+                if self._home_global is not None:
+                    self._set_home(self._home_global)
+
     def _set_home(self, h: Any) -> bool:
-        if _finite(h.local_north_m, h.local_east_m, h.local_down_m):
-            home = (h.local_north_m, h.local_east_m, h.local_down_m)
-        else:
+        """Home in the local NED frame.
+
+        From the global home and a (global, local) position pair when there is one: ArduCopter's
+        HOME_POSITION carries x = y = z = 0 because its local origin is the EKF origin, not home. Else
+        from HOME_POSITION's local fields (PX4 fills them).
+        """
+        home: Vec3 | None = None
+        if _finite(h.latitude_deg, h.longitude_deg, h.absolute_altitude_m):
+            self._home_global = h
+            if self._global_pair is not None:
+                g, local = self._global_pair
+                d = ned_offset_m(
+                    g.latitude_deg, g.longitude_deg, g.absolute_altitude_m,
+                    h.latitude_deg, h.longitude_deg, h.absolute_altitude_m,
+                )  # fmt: skip
+                home = (local[0] + d[0], local[1] + d[1], local[2] + d[2])
+        if home is None and self._autopilot != Autopilot.ARDUPILOT:
+            if _finite(h.local_north_m, h.local_east_m, h.local_down_m):
+                home = (h.local_north_m, h.local_east_m, h.local_down_m)
+        if home is None:
             return False
-        if self._snapshot.home_ned_m != home:
+        old = self._snapshot.home_ned_m
+        if old is None or max(abs(a - b) for a, b in zip(old, home, strict=True)) > HOME_CHANGE_M:
             self._update(home_ned_m=home)
             self._events.write(self._clock.now_s(), "vehicle", event="home", home_ned_m=list(home))
         return True
@@ -268,7 +301,7 @@ class MavsdkVehicle:
                 await self._call("arm", self._action.arm())
                 return
             except VehicleError as e:
-                if e.result != "COMMAND_DENIED" or self._clock.now_s() + ARM_RETRY_PERIOD_S > deadline_s:
+                if e.result not in ARM_RETRY_RESULTS or self._clock.now_s() + ARM_RETRY_PERIOD_S > deadline_s:
                     raise
             await self._clock.sleep(ARM_RETRY_PERIOD_S)
 

@@ -33,78 +33,75 @@ def sim(tmp_path):
     stop(proc)
 
 
-def start_app(tmp_path, port):
-    return popen(
+@pytest.fixture
+def tracking_app(tmp_path, sim):
+    """The real CLI connected to the simulator, 3 s into TRACK; killed at the end of the test."""
+    port, _ = sim
+    app = popen(
         ["-m", "app.main", "--mission", "circle.yaml", "--connect", f"udpin://0.0.0.0:{port}",
          "--run-dir", str(tmp_path / "run")],
         tmp_path / "app.log",
     )  # fmt: skip
-
-
-def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tmp_path, sim):
-    port, pilot_port = sim
-    app = start_app(tmp_path, port)
     events = tmp_path / "run" / "events.jsonl"
     try:
         assert wait_for_state(events, "TRACK", 60), (tmp_path / "app.log").read_text()
         time.sleep(3.0)
-        assert pilot(pilot_port, "POSCTL").returncode == 0
-        switch = next(m for m in reversed(sim_modes(tmp_path)) if m["mode"] == "POSCTL")
-        manual = wait_for_state(events, "MANUAL", 5)
-        assert manual is not None
-        latency_s = manual["t_s"] + wall_minus_mono() - switch["t_wall"]
-        assert latency_s <= 0.5, f"MANUAL {latency_s:.3f} s after the switch"
-        assert "pilot switched to POSCTL" in manual["reason"]
-
-        # The app must never switch the mode back: the vehicle stays in POSCTL.
-        time.sleep(5.0)
-        after = [m for m in sim_modes(tmp_path) if m["t_wall"] > switch["t_wall"]]
-        assert after == [], after
-        commands = [
-            e
-            for e in read_jsonl(tmp_path / "sim_state.jsonl")
-            if e.get("event") == "command" and e.get("source") == "link" and e["t_wall"] > switch["t_wall"]
-        ]
-        assert commands == [], commands  # the app sent no command at all while the pilot had control
-        print(f"takeover seen by the app {latency_s * 1000:.0f} ms after the pilot's switch")
-        assert states(events)[-1]["to"] == "MANUAL"
-
-        # Handback: the pilot selects OFFBOARD (possible on PX4 thanks to the standby stream).
-        assert pilot(pilot_port, "OFFBOARD").returncode == 0
-        resumed = wait_for(lambda: [s for s in states(events) if s["from"] == "MANUAL"], 5)
-        assert resumed and resumed[0]["to"] == "TRACK"
-        time.sleep(3.0)
-        assert sim_modes(tmp_path)[-1]["mode"] == "OFFBOARD"
-
-        # Ctrl-C: ABORT → zero velocity, then HOLD; the run ends "aborted".
-        app.send_signal(signal.SIGINT)
-        assert app.wait(timeout=20) == 1
-        assert sim_modes(tmp_path)[-1]["mode"] == "HOLD"
-        summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-        assert summary["outcome"] == "aborted"
-        assert summary["states_visited"][-3:] == ["MANUAL", "TRACK", "ABORT"]
+        yield app, events
     finally:
         stop(app, signal.SIGKILL)
 
 
-def test_killed_app_leaves_the_vehicle_in_hold_within_1_5_s(tmp_path, sim):
-    port, _ = sim
-    app = start_app(tmp_path, port)
-    events = tmp_path / "run" / "events.jsonl"
-    try:
-        assert wait_for_state(events, "TRACK", 60), (tmp_path / "app.log").read_text()
-        time.sleep(3.0)
-        assert sim_modes(tmp_path)[-1]["mode"] == "OFFBOARD"
-        t_kill_wall = time.time()
-        app.send_signal(signal.SIGKILL)
-        app.wait(timeout=5)
-        hold = wait_for(
-            lambda: next((m for m in sim_modes(tmp_path) if m["t_wall"] > t_kill_wall and m["mode"] == "HOLD"), None),
-            5,
-        )
-        assert hold is not None
-        assert hold["t_wall"] - t_kill_wall <= 1.5
-        assert hold.get("reason") == "offboard_loss"
-        print(f"vehicle in HOLD {hold['t_wall'] - t_kill_wall:.3f} s after the app was killed")
-    finally:
-        stop(app, signal.SIGKILL)
+def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tmp_path, sim, tracking_app):
+    _, pilot_port = sim
+    app, events = tracking_app
+    assert pilot(pilot_port, "POSCTL").returncode == 0
+    switch = next(m for m in reversed(sim_modes(tmp_path)) if m["mode"] == "POSCTL")
+    manual = wait_for_state(events, "MANUAL", 5)
+    assert manual is not None
+    latency_s = manual["t_s"] + wall_minus_mono() - switch["t_wall"]
+    assert latency_s <= 0.5, f"MANUAL {latency_s:.3f} s after the switch"
+    assert "pilot switched to POSCTL" in manual["reason"]
+
+    # The app must never switch the mode back: the vehicle stays in POSCTL.
+    time.sleep(5.0)
+    after = [m for m in sim_modes(tmp_path) if m["t_wall"] > switch["t_wall"]]
+    assert after == [], after
+    commands = [
+        e
+        for e in read_jsonl(tmp_path / "sim_state.jsonl")
+        if e.get("event") == "command" and e.get("source") == "link" and e["t_wall"] > switch["t_wall"]
+    ]
+    assert commands == [], commands  # the app sent no command at all while the pilot had control
+    print(f"takeover seen by the app {latency_s * 1000:.0f} ms after the pilot's switch")
+    assert states(events)[-1]["to"] == "MANUAL"
+
+    # Handback: the pilot selects OFFBOARD (possible on PX4 thanks to the standby stream).
+    assert pilot(pilot_port, "OFFBOARD").returncode == 0
+    resumed = wait_for(lambda: [s for s in states(events) if s["from"] == "MANUAL"], 5)
+    assert resumed and resumed[0]["to"] == "TRACK"
+    time.sleep(3.0)
+    assert sim_modes(tmp_path)[-1]["mode"] == "OFFBOARD"
+
+    # Ctrl-C: ABORT → zero velocity, then HOLD; the run ends "aborted".
+    app.send_signal(signal.SIGINT)
+    assert app.wait(timeout=20) == 1
+    assert sim_modes(tmp_path)[-1]["mode"] == "HOLD"
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["outcome"] == "aborted"
+    assert summary["states_visited"][-3:] == ["MANUAL", "TRACK", "ABORT"]
+
+
+def test_killed_app_leaves_the_vehicle_in_hold_within_1_5_s(tmp_path, tracking_app):
+    app, _ = tracking_app
+    assert sim_modes(tmp_path)[-1]["mode"] == "OFFBOARD"
+    t_kill_wall = time.time()
+    app.send_signal(signal.SIGKILL)
+    app.wait(timeout=5)
+    hold = wait_for(
+        lambda: next((m for m in sim_modes(tmp_path) if m["t_wall"] > t_kill_wall and m["mode"] == "HOLD"), None),
+        5,
+    )
+    assert hold is not None
+    assert hold["t_wall"] - t_kill_wall <= 1.5
+    assert hold.get("reason") == "offboard_loss"
+    print(f"vehicle in HOLD {hold['t_wall'] - t_kill_wall:.3f} s after the app was killed")

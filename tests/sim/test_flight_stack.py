@@ -231,13 +231,19 @@ def test_ardupilot_takeoff_only_in_guided_with_an_altitude() -> None:
     assert h.fs.landed_state is LandedState.IN_AIR
 
 
-def test_ardupilot_guided_takes_setpoints_without_a_stream_and_stops_after_3_s() -> None:
+def ardupilot_guided_at_5_m() -> Harness:
+    """An ArduCopter that armed, switched to GUIDED and took off to 5 m."""
     h = Harness(Profile.ARDUPILOT)
     h.advance(1.5)
     h.fs.arm(h.t_s)
     h.fs.set_mode(h.t_s, Mode.AP_GUIDED)
     h.fs.takeoff(h.t_s, 5.0)
     h.until(lambda: h.height_m > 4.8, 10.0)
+    return h
+
+
+def test_ardupilot_guided_takes_setpoints_without_a_stream_and_stops_after_3_s() -> None:
+    h = ardupilot_guided_at_5_m()
     h.fs.position_target(h.t_s, PositionTarget.velocity((2.0, 0.0, 0.0), 0.0))  # one setpoint only
     h.advance(2.5)
     assert h.fs.dyn.state.vel_ned_mps[0] > 1.5  # still flying the last velocity
@@ -247,12 +253,7 @@ def test_ardupilot_guided_takes_setpoints_without_a_stream_and_stops_after_3_s()
 
 
 def test_ardupilot_brake_stops_and_holds_and_reads_as_hold() -> None:
-    h = Harness(Profile.ARDUPILOT)
-    h.advance(1.5)
-    h.fs.arm(h.t_s)
-    h.fs.set_mode(h.t_s, Mode.AP_GUIDED)
-    h.fs.takeoff(h.t_s, 5.0)
-    h.until(lambda: h.height_m > 4.8, 10.0)
+    h = ardupilot_guided_at_5_m()
     h.advance(2.0, PositionTarget.velocity((3.0, 0.0, 0.0), 0.0))
     assert h.fs.set_mode(h.t_s, Mode.AP_BRAKE) is MavResult.ACCEPTED
     assert h.fs.flight_mode is FlightMode.HOLD
