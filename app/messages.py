@@ -144,3 +144,29 @@ def norm(v: Vec3) -> float:
 
 def sub(a: Vec3, b: Vec3) -> Vec3:
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@dataclass(frozen=True, slots=True)
+class TargetObservation:
+    """One fix of the object on the sea plane, at the camera frame's capture time ``t_s``.
+
+    ``cov_ne_m2`` is the horizontal covariance ((nn, ne), (en, ee)) the triangulation assigns to it.
+    """
+
+    t_s: float
+    pos_ned_m: Vec3
+    cov_ne_m2: tuple[tuple[float, float], tuple[float, float]]
+
+
+@dataclass(frozen=True, slots=True)
+class TargetEstimate:
+    """A filter's estimate of the object at ``t_s`` (horizontal; down copied from the last fix)."""
+
+    t_s: float
+    pos_ned_m: Vec3
+    vel_ned_mps: Vec3
+    acc_ned_mps2: Vec3
+    cov_ne_m2: tuple[tuple[float, float], tuple[float, float]]
+
+    def as_target(self) -> TargetState:
+        return TargetState(self.t_s, self.pos_ned_m, self.vel_ned_mps, self.acc_ned_mps2)

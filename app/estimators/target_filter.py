@@ -1,0 +1,204 @@
+"""Target filters: the common machinery of a linear Kalman filter on the object's horizontal motion.
+
+A concrete filter gives its state layout through ``F(dt)``, ``Q(dt)``, ``H`` and ``initial_state(z, R)``;
+this base does the rest, the same way for every model:
+
+- **Fuse at measurement time, predict to now.** ``update(obs)`` fuses a fix at its capture time;
+  ``estimate(t_s)`` predicts (without changing the filter) to any later time, e.g. the planned touchdown.
+  Between fixes the filter only predicts — the thesis's H = 0 steps.
+- **Late fixes** (capture time before the last fused one, within ``replay_window_s``) are fused in order:
+  the filter rolls back to the checkpoint before them and replays the later fixes. Older ones are dropped
+  and counted.
+- **Innovation gate**: NIS = yᵀS⁻¹y > ``NIS_GATE_2DOF`` rejects a fix (false detections); the
+  ``OUTLIER_ESCAPE_COUNT``-th consecutive rejection re-initialises the filter on it (the object really
+  moved, as AC_PrecLand's outlier escape).
+- **Timeout**: no fix for ``timeout_s`` → no estimate; the next fix re-initialises.
+- P is kept symmetric positive-definite: Joseph-form update (filterpy), symmetrised after every step.
+
+The rest of the app sees only ``TargetObservation`` in and ``TargetEstimate`` out.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import predict as kf_predict
+from filterpy.kalman import update as kf_update
+
+from app.messages import TargetEstimate, TargetObservation
+
+NIS_GATE_2DOF = 13.82  # χ²(2 dof) at p = 0.001: a fix this unlikely is an outlier
+OUTLIER_ESCAPE_COUNT = 3  # this many consecutive outliers in a row: re-initialise on the last one
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class UpdateResult:
+    accepted: bool
+    nis: float | None  # None when the fix (re-)initialised the filter
+    reason: str  # "init", "fused", "outlier", "outlier_escape", "late_fused", "too_late", "timeout_reinit"
+
+
+@dataclass(slots=True)
+class _Checkpoint:
+    t_s: float
+    x: Array
+    P: Array
+    outliers: int
+    last_fix_t_s: float
+    down_m: float
+
+
+class LinearTargetFilter(ABC):
+    """Common Kalman machinery; subclasses define the motion model."""
+
+    name = "linear"
+
+    def __init__(self, timeout_s: float = 3.0, replay_window_s: float = 1.0) -> None:
+        self.timeout_s = timeout_s
+        self.replay_window_s = replay_window_s
+        self.x: Array | None = None
+        self.P: Array | None = None
+        self.t_s = -math.inf  # time of the state x, P (the last fused fix)
+        self._last_fix_t_s = -math.inf
+        self._down_m = 0.0
+        self._outliers = 0
+        # (checkpoint before the fix, the fix) for fixes inside the replay window, in time order
+        self._history: list[tuple[_Checkpoint, TargetObservation]] = []
+        self.counts = {"fused": 0, "outlier": 0, "outlier_escape": 0, "too_late": 0, "init": 0, "late_fused": 0}
+
+    # ---- the model ------------------------------------------------------------------------------
+
+    @abstractmethod
+    def F(self, dt_s: float) -> Array: ...
+
+    @abstractmethod
+    def Q(self, dt_s: float) -> Array: ...
+
+    @property
+    @abstractmethod
+    def H(self) -> Array:
+        """Position (north, east) from the state: 2×n."""
+
+    @abstractmethod
+    def initial_state(self, z: Array, R: Array) -> tuple[Array, Array]: ...
+
+    @abstractmethod
+    def velocity_acceleration(self, x: Array) -> tuple[Array, Array]:
+        """Horizontal velocity and acceleration (2-vectors) implied by a state."""
+
+    # ---- public ---------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        self.x = self.P = None
+        self.t_s = self._last_fix_t_s = -math.inf
+        self._outliers = 0
+        self._history.clear()
+
+    @property
+    def initialised(self) -> bool:
+        return self.x is not None
+
+    def update(self, obs: TargetObservation) -> UpdateResult:
+        """Fuse one fix at its capture time."""
+        if self.x is not None and obs.t_s < self.t_s:
+            return self._fuse_late(obs)
+        return self._fuse(obs)
+
+    def estimate(self, t_s: float) -> TargetEstimate | None:
+        """The object at ``t_s`` (≥ the last fix), predicted without changing the filter."""
+        if self.x is None or self.P is None or t_s - self._last_fix_t_s > self.timeout_s:
+            return None
+        dt_s = max(0.0, t_s - self.t_s)
+        x, P = kf_predict(self.x, self.P, self.F(dt_s), self.Q(dt_s))
+        pos = self.H @ x
+        vel, acc = self.velocity_acceleration(x)
+        cov = self.H @ P @ self.H.T
+        return TargetEstimate(
+            t_s,
+            (float(pos[0]), float(pos[1]), self._down_m),
+            (float(vel[0]), float(vel[1]), 0.0),
+            (float(acc[0]), float(acc[1]), 0.0),
+            ((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))),
+        )
+
+    # ---- internals ------------------------------------------------------------------------------
+
+    def _checkpoint(self) -> _Checkpoint:
+        assert self.x is not None and self.P is not None
+        return _Checkpoint(self.t_s, self.x.copy(), self.P.copy(), self._outliers, self._last_fix_t_s, self._down_m)
+
+    def _restore(self, c: _Checkpoint) -> None:
+        self.t_s, self.x, self.P = c.t_s, c.x.copy(), c.P.copy()
+        self._outliers, self._last_fix_t_s, self._down_m = c.outliers, c.last_fix_t_s, c.down_m
+
+    def _init(self, obs: TargetObservation, reason: str) -> UpdateResult:
+        z, R = _zR(obs)
+        self.x, self.P = self.initial_state(z, R)
+        self.t_s = self._last_fix_t_s = obs.t_s
+        self._down_m = obs.pos_ned_m[2]
+        self._outliers = 0
+        self._history.clear()
+        self.counts["init"] += 1
+        return UpdateResult(True, None, reason)
+
+    def _fuse(self, obs: TargetObservation) -> UpdateResult:
+        if self.x is None or self.P is None:
+            return self._init(obs, "init")
+        if obs.t_s - self._last_fix_t_s > self.timeout_s:
+            return self._init(obs, "timeout_reinit")
+        before = self._checkpoint()
+        z, R = _zR(obs)
+        dt_s = obs.t_s - self.t_s
+        # x⁻ = F x,  P⁻ = F P Fᵀ + Q
+        x, P = kf_predict(self.x, self.P, self.F(dt_s), self.Q(dt_s))
+        H = self.H
+        # y = z − H x⁻,  S = H P⁻ Hᵀ + R,  NIS = yᵀ S⁻¹ y
+        y = z - H @ x
+        S = H @ P @ H.T + R
+        nis = float(y @ np.linalg.solve(S, y))
+        if nis > NIS_GATE_2DOF:
+            self._outliers += 1
+            if self._outliers >= OUTLIER_ESCAPE_COUNT:
+                self.counts["outlier_escape"] += 1
+                return self._init(obs, "outlier_escape")
+            self.counts["outlier"] += 1
+            return UpdateResult(False, nis, "outlier")
+        # K = P⁻Hᵀ S⁻¹,  x = x⁻ + K y,  P = (I − KH) P⁻ (I − KH)ᵀ + K R Kᵀ   (filterpy, Joseph form)
+        x, P = kf_update(x, P, z, R, H)
+        self.x, self.P = x, 0.5 * (P + P.T)
+        self.t_s = self._last_fix_t_s = obs.t_s
+        self._down_m = obs.pos_ned_m[2]
+        self._outliers = 0
+        self._history.append((before, obs))
+        while self._history and self._history[0][1].t_s < obs.t_s - self.replay_window_s:
+            self._history.pop(0)
+        self.counts["fused"] += 1
+        return UpdateResult(True, nis, "fused")
+
+    def _fuse_late(self, obs: TargetObservation) -> UpdateResult:
+        # Insert before the first fix captured after it; the checkpoint before that fix must not be
+        # later than the late fix (we can only predict forward).
+        i = bisect.bisect_right([o.t_s for _, o in self._history], obs.t_s)
+        if i >= len(self._history) or self._history[i][0].t_s > obs.t_s:
+            self.counts["too_late"] += 1
+            return UpdateResult(False, None, "too_late")
+        replay = [o for _, o in self._history[i:]]
+        self._restore(self._history[i][0])
+        del self._history[i:]
+        result = self._fuse(obs)
+        for o in replay:
+            self._fuse(o)
+        self.counts["late_fused"] += 1
+        return UpdateResult(result.accepted, result.nis, "late_fused" if result.accepted else result.reason)
+
+
+def _zR(obs: TargetObservation) -> tuple[Array, Array]:
+    z = np.array(obs.pos_ned_m[:2], dtype=float)
+    R = np.array(obs.cov_ne_m2, dtype=float)
+    return z, R

@@ -1,0 +1,146 @@
+"""The wave-aware target filter: sea current plus wave-induced oscillation (Fossen's linear wave model). Pure.
+
+Per horizontal axis (north, then east), the object's position is a slowly drifting mean plus the sum of
+``m`` narrow-band wave responses:
+
+    p = p_c + Σᵢ ξᵢ
+    ṗ_c = v_c,            v̇_c = w_c                          (current: constant velocity)
+    ξ̈ᵢ = −ωᵢ² ξᵢ − 2 λ ωᵢ ξ̇ᵢ + wᵢ                            (Fossen 2011, 2nd-order linear wave model)
+
+State per axis: [p_c, v_c, ξ₁, ξ̇₁, …, ξ_m, ξ̇_m]; the full state stacks north then east (n = 2·(2 + 2m)).
+The oscillators' frequencies ωᵢ sit around the sea state's peak ω_p; the driving noise of each is set so its
+stationary variance E[ξᵢ²] = qᵢ / (4 λ ωᵢ³) equals the share of the displacement spectrum S(ω) in its band.
+F(dt) and Q(dt) are the exact discretisation (Van Loan) of the continuous model, built per call and cached
+by dt. Predicting to the planned touchdown is F(τ) applied to the state — the oscillators carry the phase
+of the swell forward, which a constant-velocity filter cannot.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy.linalg import expm
+
+from app.estimators.target_filter import Array, LinearTargetFilter
+
+G_MPS2 = 9.81
+
+
+def pierson_moskowitz(omega_radps: Array, hs_m: float, tp_s: float) -> Array:
+    """One-sided Pierson–Moskowitz (Bretschneider) spectrum S(ω), m²·s/rad, of surface elevation."""
+    wp = 2.0 * math.pi / tp_s
+    w = np.maximum(omega_radps, 1e-6)
+    return (5.0 / 16.0) * hs_m**2 * wp**4 / w**5 * np.exp(-1.25 * (wp / w) ** 4)
+
+
+def oscillator_bank(hs_m: float, tp_s: float, ratios: tuple[float, ...]) -> tuple[Array, Array]:
+    """Frequencies ωᵢ = ratioᵢ·ω_p and the per-axis displacement variance of each band.
+
+    Horizontal orbital displacement has the spectrum of the elevation (deep water, circular orbits),
+    spread over two axes: each axis gets half. Bands split at the geometric means of adjacent ωᵢ.
+    """
+    wp = 2.0 * math.pi / tp_s
+    omegas = np.array(ratios) * wp
+    edges = np.concatenate(([0.3 * wp], np.sqrt(omegas[:-1] * omegas[1:]), [4.0 * wp]))
+    variances = np.empty(len(omegas))
+    for i in range(len(omegas)):
+        w = np.linspace(edges[i], edges[i + 1], 400)
+        variances[i] = 0.5 * np.trapezoid(pierson_moskowitz(w, hs_m, tp_s), w)
+    return omegas, variances
+
+
+class WaveFilter(LinearTargetFilter):
+    name = "wave"
+
+    def __init__(
+        self,
+        hs_m: float,
+        tp_s: float,
+        ratios: tuple[float, ...] = (0.8, 1.0, 1.3),
+        damping: float = 0.1,
+        q_current_m2ps3: float = 1e-4,
+        initial_current_std_mps: float = 0.5,
+        min_wave_std_m: float = 0.005,
+        timeout_s: float = 3.0,
+        replay_window_s: float = 1.0,
+    ) -> None:
+        super().__init__(timeout_s, replay_window_s)
+        self.damping = damping
+        self.omegas, variances = oscillator_bank(max(hs_m, 1e-3), max(tp_s, 0.5), ratios)
+        self.wave_var_m2 = np.maximum(variances, min_wave_std_m**2)
+        self.q_current_m2ps3 = q_current_m2ps3
+        self.initial_current_std_mps = initial_current_std_mps
+        m = len(self.omegas)
+        self.n_axis = 2 + 2 * m
+        h_axis = np.zeros(self.n_axis)
+        h_axis[0] = 1.0
+        h_axis[2::2] = 1.0
+        self._H = np.zeros((2, 2 * self.n_axis))
+        self._H[0, : self.n_axis] = h_axis
+        self._H[1, self.n_axis :] = h_axis
+        # continuous model per axis: ẋ = A x + G w,  E[w wᵀ] = Qc δ(t)
+        A = np.zeros((self.n_axis, self.n_axis))
+        Qc = np.zeros((self.n_axis, self.n_axis))
+        A[0, 1] = 1.0
+        Qc[1, 1] = q_current_m2ps3
+        for i, (w, var) in enumerate(zip(self.omegas, self.wave_var_m2, strict=True)):
+            j = 2 + 2 * i
+            A[j, j + 1] = 1.0
+            A[j + 1, j] = -(w**2)
+            A[j + 1, j + 1] = -2.0 * damping * w
+            Qc[j + 1, j + 1] = 4.0 * damping * w**3 * var  # stationary E[ξ²] = q / (4 λ ω³)
+        self._A, self._Qc = A, Qc
+        self._discretise = lru_cache(maxsize=256)(self._discretise_axis)
+
+    def _discretise_axis(self, dt_ms: int) -> tuple[Array, Array]:
+        """Van Loan: expm([[−A, Qc], [0, Aᵀ]]·dt) gives F = expm(A dt) and Q = F·(upper-right block)."""
+        dt_s = dt_ms / 1000.0
+        n = self.n_axis
+        M = np.zeros((2 * n, 2 * n))
+        M[:n, :n] = -self._A
+        M[:n, n:] = self._Qc
+        M[n:, n:] = self._A.T
+        E = expm(M * dt_s)
+        F = E[n:, n:].T
+        Q = F @ E[:n, n:]
+        return F, 0.5 * (Q + Q.T)
+
+    def _axis(self, dt_s: float) -> tuple[Array, Array]:
+        return self._discretise(max(0, round(dt_s * 1000.0)))
+
+    def F(self, dt_s: float) -> Array:
+        f, _ = self._axis(dt_s)
+        return np.kron(np.eye(2), f)
+
+    def Q(self, dt_s: float) -> Array:
+        _, q = self._axis(dt_s)
+        return np.kron(np.eye(2), q)
+
+    @property
+    def H(self) -> Array:
+        return self._H
+
+    def initial_state(self, z: Array, R: Array) -> tuple[Array, Array]:
+        n = self.n_axis
+        x = np.zeros(2 * n)
+        x[0], x[n] = z[0], z[1]
+        p_axis = np.zeros(n)
+        p_axis[1] = self.initial_current_std_mps**2
+        for i, (w, var) in enumerate(zip(self.omegas, self.wave_var_m2, strict=True)):
+            p_axis[2 + 2 * i] = var
+            p_axis[3 + 2 * i] = var * w**2
+        P = np.diag(np.concatenate((p_axis, p_axis)))
+        P[0, 0], P[n, n], P[0, n], P[n, 0] = R[0, 0], R[1, 1], R[0, 1], R[1, 0]
+        return x, P
+
+    def velocity_acceleration(self, x: Array) -> tuple[Array, Array]:
+        n = self.n_axis
+        vel, acc = np.zeros(2), np.zeros(2)
+        for axis in range(2):
+            s = x[axis * n : (axis + 1) * n]
+            xi, xidot = s[2::2], s[3::2]
+            vel[axis] = s[1] + xidot.sum()
+            acc[axis] = float(np.sum(-(self.omegas**2) * xi - 2.0 * self.damping * self.omegas * xidot))
+        return vel, acc
