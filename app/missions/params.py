@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 
@@ -23,3 +25,7 @@ class MissionParams(BaseModel):
     position_lost_abort_s: float = Field(
         2.0, ge=0.2, le=30.0, description="no position sample for this long in a guided state → ABORT, s"
     )
+    target_filter: Literal["constant_velocity", "wave"] = Field(
+        "wave", description="object motion model: the thesis's constant velocity, or current + waves"
+    )
+    sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")

@@ -154,3 +154,13 @@ def test_wave_filter_predicts_a_swell_one_second_ahead_better_than_cv():
                 err[name].append(math.hypot(p[0] - truth(t + 1.0)[0], p[1] - truth(t + 1.0)[1]))
     p95 = {k: np.percentile(v, 95) for k, v in err.items()}
     assert p95["wave"] < 0.5 * p95["cv"], p95
+
+
+def test_the_mission_file_chooses_the_filter():
+    from app.estimators.factory import make_target_filter
+    from app.missions.params import MissionParams
+
+    assert isinstance(make_target_filter(MissionParams(target_filter="constant_velocity")), ConstantVelocityFilter)
+    wave = make_target_filter(MissionParams(target_filter="wave", sea_state=4))
+    assert isinstance(wave, WaveFilter)
+    assert 2 * math.pi / wave.omegas[1] == pytest.approx(7.89, abs=0.01)  # the SS4 peak period
