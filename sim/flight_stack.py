@@ -18,6 +18,10 @@ What it emulates (PX4 names; ArduCopter differences in brackets):
 - OFFBOARD needs a setpoint in the last 0.5 s and falls back to HOLD after COM_OF_LOSS_T without one
   ("offboard lost") [GUIDED needs no stream; GUID_TIMEOUT without a velocity setpoint → stop and hold];
 - pilot modes (MANUAL, ALTCTL, POSCTL, STABILIZED…) hold position: a pilot-less sim has centred sticks.
+
+Refusals to arm or switch mode come from ``sim.command_checks``, land detection, spool-up and
+auto-disarm from ``sim.land_detector``, the setpoint-loss verdict from ``sim.failsafe``; this module
+acts on them (events, mode switches, disarming).
 """
 
 from __future__ import annotations
@@ -37,17 +41,16 @@ from sim.autopilot_modes import (
     initial_mode,
 )
 from sim.autopilot_params import ParamStore, Tuning
+from sim.command_checks import arming_denial, mode_switch_denial
 from sim.dynamics import ControlInput, Dynamics
+from sim.failsafe import SetpointLoss, setpoint_loss
+from sim.land_detector import LandDetector, Spoolup
 from sim.navigator import Navigator
 from sim.stack_types import Frame, PositionTarget, ResolvedSetpoint, StackEvent, Truth
 
 PHYSICS_DT_S = 0.005
-OFFBOARD_AVAILABLE_S = 0.5  # a setpoint this recent makes OFFBOARD available
-LAND_DETECT_S = 0.5  # on the ground this long while armed → landed
 CLIMB_INTENT_MPS = 0.3  # upward velocity setpoint that spins up from the ground
-SPOOLUP_S = 0.5  # motors spool up this long before a takeoff leaves the ground
 SEVERITY_WARNING, SEVERITY_NOTICE, SEVERITY_INFO = 4, 5, 6
-_PILOTLESS_OK = {Mode.MANUAL, Mode.STABILIZED, Mode.ALTCTL, Mode.AP_STABILIZE, Mode.AP_ALT_HOLD}
 
 
 class FlightStack:
@@ -81,10 +84,8 @@ class FlightStack:
         self._sp_t_s = -math.inf
         self.nav = Navigator(self.dyn, self.tuning)
         self._guided_sub = "hold"  # ArduCopter GUIDED: "hold", "takeoff", "setpoint"
-        self._contact_since_s: float | None = None
-        self._ground_since_s = 0.0
-        self._flew_since_arm = False
-        self._spool_since_s: float | None = None
+        self.land_detector = LandDetector()
+        self.spoolup = Spoolup()
 
     # -- time -----------------------------------------------------------------------------------
 
@@ -140,28 +141,8 @@ class FlightStack:
         return self.t_s - self._sp_t_s
 
     def truth(self) -> Truth:
-        s = self.dyn.state
-        b = self.dyn.battery
-        return Truth(
-            t_s=self.t_s,
-            pos_ned_m=s.pos_ned_m,
-            vel_ned_mps=s.vel_ned_mps,
-            acc_ned_mps2=s.acc_ned_mps2,
-            roll_rad=s.roll_rad,
-            pitch_rad=s.pitch_rad,
-            yaw_rad=s.yaw_rad,
-            rates_radps=s.rates_radps,
-            armed=self.armed,
-            mode=self.mode,
-            flight_mode=self.flight_mode,
-            landed_state=self.landed_state,
-            home_ned_m=self.home_ned_m,
-            on_ground=s.on_ground,
-            wind_ned_mps=s.wind_ned_mps,
-            battery_v=b.voltage_v,
-            battery_a=b.current_a,
-            battery_remaining=b.remaining_frac,
-            gripper_closed=self.gripper_closed,
+        return Truth.of(
+            self.t_s, self.dyn, self.armed, self.mode, self.landed_state, self.home_ned_m, self.gripper_closed
         )
 
     # -- commands -------------------------------------------------------------------------------
@@ -170,16 +151,11 @@ class FlightStack:
         self.step(t_s)
         if self.armed:
             return MavResult.ACCEPTED
-        if not self.prearm_ok:
-            reason = self._prearm_failure or ("no GPS fix" if not self.gps_ok else "no home")
-            return self._deny(f"Arming denied: {reason}")
-        if self.landed_state is not LandedState.ON_GROUND:
-            return self._deny("Arming denied: not landed")
-        if self.mode in (Mode.AUTO_LAND, Mode.AUTO_RTL, Mode.AP_LAND, Mode.AP_RTL, Mode.AP_BRAKE, Mode.AP_AUTO):
-            return self._deny(f"Arming denied: {self.mode.label} mode not armable")
+        denial = arming_denial(self.prearm_ok, self._prearm_failure, self.gps_ok, self.landed_state, self.mode)
+        if denial is not None:
+            return self._deny(denial)
         self.armed = True
-        self._ground_since_s = self.t_s
-        self._flew_since_arm = False
+        self.land_detector.on_arm(self.t_s)
         self._set_home(self.dyn.state.pos_ned_m)
         self.nav.hold_here()
         self._emit(StackEvent(self.t_s, "armed", reason="command", armed=True))
@@ -231,12 +207,9 @@ class FlightStack:
             return MavResult.UNSUPPORTED
         if mode is self.mode:
             return MavResult.ACCEPTED
-        if not self.gps_ok and mode not in _PILOTLESS_OK:
-            return self._deny(f"{mode.label} denied: no position estimate")
-        if mode is Mode.OFFBOARD and self.offboard_setpoint_age_s() > OFFBOARD_AVAILABLE_S:
-            return self._deny("Switching to Offboard is currently not available")
-        if mode in (Mode.AUTO_MISSION, Mode.AP_AUTO):
-            return self._deny("Mission rejected: no mission loaded")
+        denial = mode_switch_denial(mode, self.gps_ok, self.offboard_setpoint_age_s())
+        if denial is not None:
+            return self._deny(denial)
         if mode is Mode.AUTO_TAKEOFF:
             return self.takeoff(t_s)
         self._enter(mode, source)
@@ -324,14 +297,13 @@ class FlightStack:
         self._auto_disarm(t_s)
 
     def _failsafes(self, t_s: float) -> None:
-        age_s = t_s - self._sp_t_s
-        if self.mode is Mode.OFFBOARD and age_s > self.tuning.offboard_loss_s():
+        loss = setpoint_loss(self.mode, self._guided_sub, self._sp, t_s - self._sp_t_s, self.tuning.offboard_loss_s())
+        if loss is SetpointLoss.OFFBOARD_LOST:
             self._statustext("Failsafe: offboard lost, switching to HOLD", SEVERITY_WARNING)
             self._enter(Mode.AUTO_LOITER, "offboard_loss")
-        elif self.mode is Mode.AP_GUIDED and self._guided_sub == "setpoint" and self._sp is not None:
-            if self._sp.is_velocity and age_s > self.tuning.offboard_loss_s():
-                self._guided_sub = "hold"
-                self.nav.hold_here()
+        elif loss is SetpointLoss.GUIDED_STOP:
+            self._guided_sub = "hold"
+            self.nav.hold_here()
 
     def _control(self, t_s: float) -> ControlInput:
         pr = self.dyn.params
@@ -365,16 +337,8 @@ class FlightStack:
 
     def _motors_on(self, t_s: float, vel_sp_ned_mps: Vec3, takeoff: bool) -> bool:
         """Thrust only when armed; on the ground only after a climb was wanted for SPOOLUP_S."""
-        if not self.armed or self.landed_state is not LandedState.ON_GROUND:
-            self._spool_since_s = None
-            return self.armed
         climb = vel_sp_ned_mps[2] <= -CLIMB_INTENT_MPS and (takeoff or self.mode is not Mode.AP_GUIDED)
-        if not climb:
-            self._spool_since_s = None  # idle on the ground
-            return False
-        if self._spool_since_s is None:
-            self._spool_since_s = t_s
-        return t_s - self._spool_since_s >= SPOOLUP_S
+        return self.spoolup.motors_on(t_s, self.armed, self.landed_state is LandedState.ON_GROUND, climb)
 
     def _takeoff_done(self) -> None:
         target = self.nav.takeoff_target_ned_m
@@ -393,28 +357,14 @@ class FlightStack:
 
     def _update_landed_state(self, t_s: float) -> None:
         on_ground = self.dyn.state.on_ground
-        if self.landed_state is LandedState.ON_GROUND:
-            if on_ground:
-                return
-            self._flew_since_arm = True
-            self._contact_since_s = None
+        update = self.land_detector.update(t_s, self.landed_state, on_ground, self._taking_off(), self._landing_phase())
+        if update.detected == "takeoff":
             self._statustext("Takeoff detected", SEVERITY_INFO)
-        elif on_ground:
-            if self._contact_since_s is None:
-                self._contact_since_s = t_s
-            if t_s - self._contact_since_s >= LAND_DETECT_S:
-                self._set_landed_state(LandedState.ON_GROUND)
-                self._ground_since_s = t_s
-                self._statustext("Landing detected", SEVERITY_INFO)
-                if self.mode.behaviour is Behaviour.OFFBOARD:
-                    self.nav.hold_here()
-            return
-        else:
-            self._contact_since_s = None
-        if self._taking_off():
-            self._set_landed_state(LandedState.TAKING_OFF)
-        else:
-            self._set_landed_state(LandedState.LANDING if self._landing_phase() else LandedState.IN_AIR)
+        self._set_landed_state(update.landed_state)
+        if update.detected == "landing":
+            self._statustext("Landing detected", SEVERITY_INFO)
+            if self.mode.behaviour is Behaviour.OFFBOARD:
+                self.nav.hold_here()
 
     def _set_landed_state(self, state: LandedState) -> None:
         if state is not self.landed_state:
@@ -422,15 +372,10 @@ class FlightStack:
             self._emit(StackEvent(self.t_s, "landed_state", landed_state=state))
 
     def _auto_disarm(self, t_s: float) -> None:
-        if not self.armed or self.landed_state is not LandedState.ON_GROUND:
+        if not self.armed:
             return
-        on_ground_s = t_s - self._ground_since_s
-        if self.profile is Profile.ARDUPILOT and self._flew_since_arm and self._landing_phase():
-            self._statustext("Disarming: landed", SEVERITY_INFO)
-            self._disarm("auto_disarm_land")
-            return
-        limit_s = self.tuning.disarm_land_s() if self._flew_since_arm else self.tuning.disarm_preflight_s()
-        if limit_s > 0.0 and on_ground_s >= limit_s:
-            kind = "land" if self._flew_since_arm else "preflight"
-            self._statustext(f"Disarmed by auto {kind} disarming", SEVERITY_INFO)
-            self._disarm(f"auto_disarm_{kind}")
+        at_touchdown = self.profile is Profile.ARDUPILOT and self._landing_phase()
+        disarm = self.land_detector.auto_disarm(t_s, self.landed_state, at_touchdown, self.tuning)
+        if disarm is not None:
+            self._statustext(disarm.text, SEVERITY_INFO)
+            self._disarm(disarm.reason)

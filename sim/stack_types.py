@@ -13,6 +13,7 @@ from enum import IntEnum
 
 from app.messages import FlightMode, LandedState, Vec3
 from sim.autopilot_modes import Mode
+from sim.dynamics import Dynamics
 
 IGNORE_POS = (0x1, 0x2, 0x4)
 IGNORE_VEL = (0x8, 0x10, 0x20)
@@ -140,3 +141,39 @@ class Truth:
     battery_a: float
     battery_remaining: float
     gripper_closed: bool
+
+    @classmethod
+    def of(
+        cls,
+        t_s: float,
+        dyn: Dynamics,
+        armed: bool,
+        mode: Mode,
+        landed_state: LandedState,
+        home_ned_m: Vec3 | None,
+        gripper_closed: bool,
+    ) -> Truth:
+        """The snapshot at ``t_s``: ``dyn``'s state and battery, and the flight stack's own state."""
+        s = dyn.state
+        b = dyn.battery
+        return cls(
+            t_s=t_s,
+            pos_ned_m=s.pos_ned_m,
+            vel_ned_mps=s.vel_ned_mps,
+            acc_ned_mps2=s.acc_ned_mps2,
+            roll_rad=s.roll_rad,
+            pitch_rad=s.pitch_rad,
+            yaw_rad=s.yaw_rad,
+            rates_radps=s.rates_radps,
+            armed=armed,
+            mode=mode,
+            flight_mode=mode.flight_mode,
+            landed_state=landed_state,
+            home_ned_m=home_ned_m,
+            on_ground=s.on_ground,
+            wind_ned_mps=s.wind_ned_mps,
+            battery_v=b.voltage_v,
+            battery_a=b.current_a,
+            battery_remaining=b.remaining_frac,
+            gripper_closed=gripper_closed,
+        )
