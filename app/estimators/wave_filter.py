@@ -23,16 +23,13 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import expm
 
+from app.estimators.sea_state import pierson_moskowitz
 from app.estimators.target_filter import Array, LinearTargetFilter
 
-G_MPS2 = 9.81
-
-
-def pierson_moskowitz(omega_radps: Array, hs_m: float, tp_s: float) -> Array:
-    """One-sided Pierson–Moskowitz (Bretschneider) spectrum S(ω), m²·s/rad, of surface elevation."""
-    wp = 2.0 * math.pi / tp_s
-    w = np.maximum(omega_radps, 1e-6)
-    return (5.0 / 16.0) * hs_m**2 * wp**4 / w**5 * np.exp(-1.25 * (wp / w) ** 4)
+# Oscillator frequencies as multiples of the sea state's peak ω_p. A Pierson–Moskowitz sea carries much of
+# its orbital displacement above the peak (the ω⁻⁵ tail), so the bank reaches 2.3·ω_p. Chosen on a tuning
+# seed (sim.evaluate, seed 7, sea states 2–4): 8 oscillators beat 3 and 6 at the 1-s horizon.
+OSCILLATOR_RATIOS = (0.7, 0.85, 1.0, 1.15, 1.35, 1.6, 1.9, 2.3)
 
 
 def oscillator_bank(hs_m: float, tp_s: float, ratios: tuple[float, ...]) -> tuple[Array, Array]:
@@ -58,9 +55,9 @@ class WaveFilter(LinearTargetFilter):
         self,
         hs_m: float,
         tp_s: float,
-        ratios: tuple[float, ...] = (0.8, 1.0, 1.3),
+        ratios: tuple[float, ...] = OSCILLATOR_RATIOS,
         damping: float = 0.1,
-        q_current_m2ps3: float = 1e-4,
+        q_current_m2ps3: float = 1e-6,  # a current that varies by ~0.05 m/s over ~10 min
         initial_current_std_mps: float = 0.5,
         min_wave_std_m: float = 0.005,
         timeout_s: float = 3.0,
@@ -68,8 +65,11 @@ class WaveFilter(LinearTargetFilter):
     ) -> None:
         super().__init__(timeout_s, replay_window_s)
         self.damping = damping
-        self.omegas, variances = oscillator_bank(max(hs_m, 1e-3), max(tp_s, 0.5), ratios)
-        self.wave_var_m2 = np.maximum(variances, min_wave_std_m**2)
+        if hs_m > 0.0 and tp_s > 0.0:
+            self.omegas, variances = oscillator_bank(hs_m, tp_s, ratios)
+            self.wave_var_m2 = np.maximum(variances, min_wave_std_m**2)
+        else:  # a glassy sea: current only
+            self.omegas, self.wave_var_m2 = np.zeros(0), np.zeros(0)
         self.q_current_m2ps3 = q_current_m2ps3
         self.initial_current_std_mps = initial_current_std_mps
         m = len(self.omegas)
