@@ -1,0 +1,80 @@
+"""Synthetic fixes have the errors and defects they promise; the filter evaluation keeps its contract."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from app.estimators.cv_filter import ConstantVelocityFilter
+from app.estimators.sea_state import SEA_STATES
+from app.estimators.wave_filter import WaveFilter
+from sim.evaluate import prediction_errors
+from sim.fixes import make_fixes, triangulation_cov
+from sim.sea import FloatingObject, SeaConfig, SeaWorld
+from tests.e2e.cliutil import ROOT
+
+
+@pytest.fixture(scope="module")
+def ss3():
+    sea = SeaWorld(SeaConfig(sea_state=3), seed=4)
+    obj = FloatingObject(sea)
+    return sea, obj, make_fixes(sea, obj, 300.0, seed=4)
+
+
+def test_rates_dropouts_false_and_late_fixes(ss3):
+    _, _, fx = ss3
+    n = fx.t_s.size
+    assert 300 * 10 * 0.8 < n < 300 * 30  # 10–30 Hz less ~6 % dropouts
+    assert 0.01 < fx.is_false.mean() < 0.035  # 2 % false detections
+    assert 0.01 < fx.is_late.mean() < 0.035  # 2 % delivered late …
+    order = np.flatnonzero(fx.is_late)
+    after_newer = [fx.t_s[i] < fx.t_s[:i].max() for i in order if i > 0]
+    assert np.mean(after_newer) > 0.9  # … after newer captures (a few end up in order next to other late ones)
+    gaps = np.diff(np.sort(fx.t_s))
+    assert gaps.max() > 0.2  # dropouts exist
+
+
+def test_true_fixes_are_centimetre_to_decimetre_accurate(ss3):
+    _, obj, fx = ss3
+    truth, _, _ = obj.states(fx.t_s)
+    err = np.hypot(*(fx.z_ne_m - truth[:, :2]).T)[~fx.is_false]
+    assert np.percentile(err, 50) < 0.1 and np.percentile(err, 95) < 0.4
+    assert np.percentile(np.hypot(*(fx.z_ne_m - truth[:, :2]).T)[fx.is_false], 50) > 1.0  # false ones are far off
+
+
+def test_triangulation_covariance_by_hand():
+    # 3 m north of nadir at 4 m: tanθ = 0.75, cosθ = 0.8
+    c = triangulation_cov(np.array([[3.0, 0.0]]), np.array([4.0]), 0.01, 0.05)[0]
+    assert c[0, 0] == pytest.approx((4 / 0.64 * 0.01) ** 2 + (0.75 * 0.05) ** 2)  # along the bearing
+    assert c[1, 1] == pytest.approx((4 / 0.8 * 0.01) ** 2)  # across it
+    assert c[0, 1] == pytest.approx(0.0)
+
+
+def test_wave_filter_beats_constant_velocity_at_one_second_in_sea_state_3(ss3):
+    _, obj, fx = ss3
+    ss = SEA_STATES[3]
+    wave = prediction_errors(WaveFilter(ss.hs_m, ss.tp_s), fx, obj, (1.0,))[1.0]
+    best_cv = min(
+        np.percentile(prediction_errors(ConstantVelocityFilter(q_pos, q_vel), fx, obj, (1.0,))[1.0], 95)
+        for q_pos, q_vel in ((1.0, 1e-9), (0.1, 1e-3), (0.01, 0.1))
+    )
+    assert np.percentile(wave, 95) < 0.65 * best_cv
+
+
+def test_cli_json_has_the_promised_keys():
+    out = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", "filters", "--sea-state", "0", "--duration-s", "60",
+         "--tune-duration-s", "30", "--json"],
+        cwd=ROOT, capture_output=True, text=True, timeout=120, check=True,
+    )  # fmt: skip
+    doc = json.loads(out.stdout)
+    r = doc["sea_states"]["0"]
+    for key in ("cv_p95_1s_m", "wave_p95_1s_m", "ratio_1s", "ratio_0p5s", "cv_p95_0s_m", "wave_p95_2s_m"):
+        assert key in r
+    assert r["ratio_1s"] == pytest.approx(r["cv_p95_1s_m"] / r["wave_p95_1s_m"], rel=1e-2)
+    assert math.isfinite(r["ratio_1s"]) and r["ratio_1s"] > 0.9  # glassy sea: the wave filter is no worse
