@@ -7,7 +7,7 @@ blocks. An invalid field is reported as ``ConfigError`` naming its YAML path and
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -85,12 +85,50 @@ class RunnerSettings(_Model):
     )
 
 
+class CameraSettings(_Model):
+    """The downward camera (thesis: oCam 1MGN, 1280×960 mono, 30 fps) and how it is mounted."""
+
+    device: str = Field("/dev/video0", description="V4L2 device path or index")
+    width_px: int = Field(1280, ge=160, le=4096, description="image width, px")
+    height_px: int = Field(960, ge=120, le=4096, description="image height, px")
+    fps_hz: float = Field(30.0, ge=1.0, le=120.0, description="capture rate, Hz")
+    fx_px: float = Field(1000.0, ge=50.0, le=20000.0, description="focal length x, px")
+    fy_px: float = Field(1000.0, ge=50.0, le=20000.0, description="focal length y, px")
+    cx_px: float = Field(640.0, ge=0.0, le=4096.0, description="principal point x, px")
+    cy_px: float = Field(480.0, ge=0.0, le=4096.0, description="principal point y, px")
+    distortion: tuple[float, ...] = Field(
+        (0.0, 0.0, 0.0, 0.0, 0.0), min_length=4, max_length=8, description="OpenCV k1 k2 p1 p2 [k3 …], unitless"
+    )
+    mount_roll_deg: float = Field(0.0, ge=-180.0, le=180.0, description="camera→body Euler roll, deg")
+    mount_pitch_deg: float = Field(0.0, ge=-180.0, le=180.0, description="camera→body Euler pitch, deg")
+    mount_yaw_deg: float = Field(90.0, ge=-180.0, le=180.0, description="camera→body Euler yaw (thesis: 90), deg")
+    lever_arm_frd_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.1), description="camera position from the body origin, forward/right/down, m"
+    )
+    pixel_noise_std_px: float = Field(0.5, ge=0.05, le=20.0, description="detection noise for the covariance, px")
+    auto_exposure: bool = Field(True, description="keep the mean brightness in the band (switchable at run time)")
+    brightness_low: float = Field(100.0, ge=0.0, le=255.0, description="auto-exposure band low (thesis 100), grey")
+    brightness_high: float = Field(140.0, ge=0.0, le=255.0, description="auto-exposure band high (thesis 140), grey")
+
+
+class DetectorSettings(_Model):
+    kind: Literal["aruco", "buoy"] = Field("aruco", description="marker (ArUco/AprilTag) or plain yellow buoy")
+    dictionary: str = Field("DICT_4X4_50", description="cv2.aruco predefined dictionary name")
+    marker_id: int = Field(7, ge=0, le=1000, description="the object's marker ID, id")
+    nested_marker_ids: tuple[int, ...] = Field((), description="smaller markers nested in the big one, id")
+    marker_size_m: float = Field(0.30, ge=0.01, le=5.0, description="outer marker edge length, m")
+    buoy_diameter_m: float = Field(0.15, ge=0.02, le=3.0, description="buoy diameter, m")
+    roi_margin: float = Field(2.0, ge=1.0, le=10.0, description="tracking window = margin × last marker size, ratio")
+
+
 class Settings(_Model):
     connection: ConnectionSettings = ConnectionSettings()
     telemetry: TelemetrySettings = TelemetrySettings()
     envelope: EnvelopeSettings = EnvelopeSettings()
     guidance: GuidanceSettings = GuidanceSettings()
     runner: RunnerSettings = RunnerSettings()
+    camera: CameraSettings = CameraSettings()
+    detector: DetectorSettings = DetectorSettings()
 
 
 def format_validation_error(source: str, exc: ValidationError, model: type[BaseModel]) -> ConfigError:
