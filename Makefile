@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 RUN_DIR ?= runs/demo
 
-.PHONY: setup demo test lint bench clean
+.PHONY: setup demo test lint eval bench clean
 
 $(STAMP): pyproject.toml
 	@# A bare Debian has python3 but may lack venv/ensurepip: install it with apt-get (as root or via sudo).
@@ -24,6 +24,9 @@ demo: $(STAMP)   ## fly the default simulated mission (circle) and print its sum
 
 test: $(STAMP)   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
 	$(BIN)/python -m pytest -q
+
+eval: $(STAMP)   ## target filters against ground truth, sea states 0–4
+	$(BIN)/python -m sim.evaluate filters
 
 lint: $(STAMP)
 	$(BIN)/ruff check app sim tests
