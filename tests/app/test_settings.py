@@ -47,3 +47,10 @@ def test_not_yaml_is_reported(tmp_path):
     p.write_text("envelope: [unclosed\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         load_settings(p)
+
+
+def test_thesis_guidance_profile_turns_the_lead_off():
+    from app.settings import SETTINGS_DIR
+
+    s = load_settings(SETTINGS_DIR / "thesis-guidance.yaml")
+    assert s.guidance.velocity_lead_s == 0.0 and s.guidance.transient_distance_m == 0.5
