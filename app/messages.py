@@ -170,3 +170,34 @@ class TargetEstimate:
 
     def as_target(self) -> TargetState:
         return TargetState(self.t_s, self.pos_ned_m, self.vel_ned_mps, self.acc_ned_mps2)
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleStateNed:
+    """Vehicle position, velocity and attitude valid at ``t_s`` (e.g. interpolated from the state history).
+
+    ``q_ned_frd`` is the unit quaternion (w, x, y, z) that rotates body (forward, right, down) vectors into NED.
+    """
+
+    t_s: float
+    pos_ned_m: Vec3
+    vel_ned_mps: Vec3
+    q_ned_frd: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class PixelDetection:
+    """The object found in one camera frame, in *raw* (distorted) pixels, at the frame's capture time ``t_s``.
+
+    ``corners_px`` are a marker's four corners in ArUco order (top-left, top-right, bottom-right, bottom-left of
+    the marker image; empty for a buoy) and ``center_px`` their mean (thesis eq. 4.3) or the buoy circle's
+    centre. Undistortion happens later, on these points only (``CameraModel.undistort_to_rays``).
+    """
+
+    t_s: float
+    center_px: tuple[float, float]
+    corners_px: tuple[tuple[float, float], ...]
+    size_px: float  # marker: mean edge length; buoy: diameter, px
+    size_m: float  # the physical edge length / diameter of what was seen, m
+    marker_id: int  # the marker's ID (a nested one near touchdown); -1 for a buoy
+    tracked: bool  # found in the tracking window (False: by a full-frame search)

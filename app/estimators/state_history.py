@@ -1,0 +1,162 @@
+"""Vehicle-state history: a bounded ring buffer of telemetry, interpolated at a measurement's time. Pure.
+
+STYLE 10 (AC_PrecLand's inertial history): a camera frame is fused against the vehicle state at its
+*capture* time, not against the newest telemetry. Position and attitude arrive as separate streams at
+their own rates and phases; each is kept in its own ring:
+
+- position / velocity (NED, m, m/s): linear interpolation between the two bracketing samples;
+- attitude (quaternion body FRD → NED): slerp between the two bracketing samples (no Euler wrap at ±180°).
+
+``at(t_s)`` raises ``OutsideHistoryError`` — saying which stream and its span — when ``t_s`` is outside
+the span of either stream, or falls in a telemetry gap longer than ``max_gap_s``. Samples not newer than
+the newest one of their stream are dropped and counted (``dropped_out_of_order``). Oldest samples fall out
+once ``capacity`` is reached.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.errors import AppError
+from app.estimators.rotations import quat_from_euler_zyx, quat_slerp
+from app.messages import AttitudeEuler, PositionVelocityNed, Vec3, VehicleStateNed
+
+DEFAULT_CAPACITY = 256  # 5 s of 50 Hz telemetry
+DEFAULT_MAX_GAP_S = 0.5  # two samples further apart than this do not bracket anything
+
+
+class OutsideHistoryError(AppError):
+    """Raised by ``StateHistory.at`` when ``t_s`` is outside a stream's span or inside a telemetry gap."""
+
+    def __init__(self, stream: str, t_s: float, oldest_s: float | None, newest_s: float | None, reason: str) -> None:
+        self.stream = stream
+        self.t_s = t_s
+        self.oldest_s = oldest_s
+        self.newest_s = newest_s
+        self.reason = reason
+        span = "empty" if oldest_s is None else f"[{oldest_s:.3f}, {newest_s:.3f}] s"
+        super().__init__(f"{stream} history cannot give t={t_s:.3f} s: {reason} (span {span})")
+
+
+class _Ring:
+    """Time-ordered samples (t, k values) in a contiguous window of a 2×capacity array: O(1) append."""
+
+    def __init__(self, capacity: int, width: int) -> None:
+        if capacity < 2:
+            raise ValueError("capacity must be at least 2")
+        self.capacity = capacity
+        self._t = np.empty(2 * capacity)
+        self._v = np.empty((2 * capacity, width))
+        self._start = 0
+        self._end = 0
+
+    def __len__(self) -> int:
+        return self._end - self._start
+
+    def newest_t(self) -> float | None:
+        return float(self._t[self._end - 1]) if len(self) else None
+
+    def oldest_t(self) -> float | None:
+        return float(self._t[self._start]) if len(self) else None
+
+    def append(self, t_s: float, values: tuple[float, ...]) -> None:
+        if self._end == len(self._t):  # slide the window back to the front
+            n = len(self)
+            self._t[:n] = self._t[self._start : self._end]
+            self._v[:n] = self._v[self._start : self._end]
+            self._start, self._end = 0, n
+        self._t[self._end] = t_s
+        self._v[self._end] = values
+        self._end += 1
+        if len(self) > self.capacity:
+            self._start += 1
+
+    def bracket(self, stream: str, t_s: float, max_gap_s: float) -> tuple[int, int, float]:
+        """Indices of the samples around ``t_s`` and the fraction between them (0 at the older one)."""
+        t = self._t[self._start : self._end]
+        if len(t) == 0 or t_s < t[0] or t_s > t[-1]:
+            raise OutsideHistoryError(stream, t_s, self.oldest_t(), self.newest_t(), "outside the span")
+        i = int(np.searchsorted(t, t_s, side="right")) - 1
+        if i == len(t) - 1:  # exactly the newest sample
+            return self._start + i, self._start + i, 0.0
+        dt = float(t[i + 1] - t[i])
+        if dt > max_gap_s:
+            raise OutsideHistoryError(
+                stream, t_s, self.oldest_t(), self.newest_t(), f"in a {dt:.3f} s gap between samples"
+            )
+        return self._start + i, self._start + i + 1, float((t_s - t[i]) / dt)
+
+    def values(self, index: int) -> np.ndarray:
+        return self._v[index]
+
+    def newest_values(self) -> np.ndarray | None:
+        return self._v[self._end - 1] if len(self) else None
+
+
+class StateHistory:
+    """The last ``capacity`` position/velocity and attitude samples, interpolated on demand."""
+
+    def __init__(self, capacity: int = DEFAULT_CAPACITY, max_gap_s: float = DEFAULT_MAX_GAP_S) -> None:
+        self.max_gap_s = max_gap_s
+        self._pos_vel = _Ring(capacity, 6)
+        self._att = _Ring(capacity, 4)
+        self.dropped_out_of_order = 0
+
+    # -- feeding ---------------------------------------------------------------------------------
+
+    def add_pos_vel(self, s: PositionVelocityNed) -> bool:
+        """Store a position/velocity sample; False (and counted) when it is not newer than the newest."""
+        newest = self._pos_vel.newest_t()
+        if newest is not None and s.t_s <= newest:
+            self.dropped_out_of_order += 1
+            return False
+        self._pos_vel.append(s.t_s, (*s.pos_ned_m, *s.vel_ned_mps))
+        return True
+
+    def add_attitude(self, a: AttitudeEuler) -> bool:
+        """Store an attitude sample; False (and counted) when it is not newer than the newest."""
+        newest = self._att.newest_t()
+        if newest is not None and a.t_s <= newest:
+            self.dropped_out_of_order += 1
+            return False
+        q = quat_from_euler_zyx(a.roll_rad, a.pitch_rad, a.yaw_rad)
+        prev = self._att.newest_values()
+        if prev is not None and float(np.dot(prev, q)) < 0.0:  # keep the sign continuous
+            q = (-q[0], -q[1], -q[2], -q[3])
+        self._att.append(a.t_s, q)
+        return True
+
+    # -- reading ---------------------------------------------------------------------------------
+
+    def span_s(self) -> tuple[float, float] | None:
+        """The time span both streams cover, or None when either is empty or they do not overlap."""
+        lo_p, hi_p = self._pos_vel.oldest_t(), self._pos_vel.newest_t()
+        lo_a, hi_a = self._att.oldest_t(), self._att.newest_t()
+        if lo_p is None or lo_a is None or hi_p is None or hi_a is None:
+            return None
+        lo, hi = max(lo_p, lo_a), min(hi_p, hi_a)
+        return (lo, hi) if lo <= hi else None
+
+    def at(self, t_s: float) -> VehicleStateNed:
+        """The vehicle state interpolated at ``t_s``; raises ``OutsideHistoryError`` when it cannot."""
+        i0, i1, f = self._pos_vel.bracket("position", t_s, self.max_gap_s)
+        pv = (1.0 - f) * self._pos_vel.values(i0) + f * self._pos_vel.values(i1)
+        j0, j1, g = self._att.bracket("attitude", t_s, self.max_gap_s)
+        q = quat_slerp(self._att.values(j0), self._att.values(j1), g)
+        return VehicleStateNed(t_s, _vec3(pv[:3]), _vec3(pv[3:]), q)
+
+    def latest(self) -> VehicleStateNed:
+        """The newest sample of each stream as they are (no interpolation), stamped with the newer time."""
+        pv = self._pos_vel.newest_values()
+        q = self._att.newest_values()
+        if pv is None or q is None:
+            raise OutsideHistoryError("state", float("nan"), None, None, "no samples yet")
+        t_s = max(self._pos_vel.newest_t() or 0.0, self._att.newest_t() or 0.0)
+        return VehicleStateNed(t_s, _vec3(pv[:3]), _vec3(pv[3:]), (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
+
+    def __len__(self) -> int:
+        return min(len(self._pos_vel), len(self._att))
+
+
+def _vec3(a: np.ndarray) -> Vec3:
+    return (float(a[0]), float(a[1]), float(a[2]))

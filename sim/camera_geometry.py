@@ -1,0 +1,143 @@
+"""The camera simulator's geometric mode: marker corners projected through the true pose, plus pixel noise.
+
+No image is drawn: the four corners of the object's square marker are placed at its true pose (on the
+sea surface, optionally tilted by the wave slope), moved into the true camera frame (vehicle position and
+attitude, camera lever arm and mounting) and projected through the true intrinsics and distortion. Gaussian
+pixel noise is added; the noise-free pixels and the geometry come back alongside as ground truth. Fast
+enough for Monte Carlo (no rendering, no detection).
+
+Frames as in ``app.estimators.triangulation``: NED, body FRD, camera (x right, y down, z optical axis).
+The pose chain is written out here on its own (explicit Euler matrices), not borrowed from the estimator,
+so a test of one against the other checks something.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from app.messages import Vec3
+from app.sensors.camera_model import CameraModel
+from app.settings import CameraSettings
+
+FloatArray = NDArray[np.float64]
+
+
+def _euler_zyx(roll_rad: float, pitch_rad: float, yaw_rad: float) -> FloatArray:
+    """R_a_b = Rz(yaw) Ry(pitch) Rx(roll), written out element by element."""
+    cf, sf = math.cos(roll_rad), math.sin(roll_rad)
+    ct, st = math.cos(pitch_rad), math.sin(pitch_rad)
+    cp, sp = math.cos(yaw_rad), math.sin(yaw_rad)
+    return np.array(
+        [
+            [cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
+            [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
+            [-st, ct * sf, ct * cf],
+        ]
+    )
+
+
+def marker_corners_ned(
+    centre_ned_m: Vec3, size_m: float, yaw_rad: float = 0.0, roll_rad: float = 0.0, pitch_rad: float = 0.0
+) -> FloatArray:
+    """The 4 corners (ArUco order TL, TR, BR, BL seen from above) of a square marker, NED, 4×3.
+
+    At yaw 0 the marker's top edge faces north and its right edge east, so a north-up camera sees it upright.
+    Roll/pitch tilt it (wave slope) about its centre.
+    """
+    s = size_m / 2.0
+    local = np.array([[s, -s, 0.0], [s, s, 0.0], [-s, s, 0.0], [-s, -s, 0.0]])  # N, E, D in the marker frame
+    R = _euler_zyx(roll_rad, pitch_rad, yaw_rad)
+    return np.asarray(centre_ned_m, dtype=np.float64) + local @ R.T
+
+
+@dataclass(frozen=True, eq=False)
+class GeometricFrame:
+    """One simulated detection and its ground truth."""
+
+    t_s: float
+    visible: bool  # all four corners in front of the camera and inside the image (with the margin)
+    corners_px: FloatArray  # 4×2, noisy (what a detector would report)
+    corners_true_px: FloatArray  # 4×2, noise-free
+    centre_true_px: FloatArray  # (2,), the projection of the marker centre, noise-free
+    marker_centre_ned_m: Vec3
+    corners_ned_m: FloatArray  # 4×3
+    camera_pos_ned_m: Vec3
+    R_ned_cam: FloatArray  # 3×3, true camera attitude
+    camera_height_m: float  # camera above the sea surface at the marker, m
+    radar_height_m: float  # radar above the sea surface under it (what a perfect radar reads), m
+
+
+class GeometricCamera:
+    """The true camera (settings = truth) and the pixel noise of the simulated detector."""
+
+    def __init__(
+        self,
+        camera: CameraSettings,
+        marker_size_m: float = 0.30,
+        pixel_noise_std_px: float = 0.5,
+        radar_arm_frd_m: Vec3 = (0.0, 0.0, 0.0),
+        margin_px: float = 2.0,
+        seed: int | None = 0,
+    ) -> None:
+        self.model = CameraModel.from_settings(camera)
+        mount_rad = (camera.mount_roll_deg, camera.mount_pitch_deg, camera.mount_yaw_deg)
+        self.R_frd_cam = _euler_zyx(*(math.radians(a) for a in mount_rad))
+        self.cam_arm_frd_m = np.asarray(camera.lever_arm_frd_m, dtype=np.float64)
+        self.radar_arm_frd_m = np.asarray(radar_arm_frd_m, dtype=np.float64)
+        self.marker_size_m = marker_size_m
+        self.pixel_noise_std_px = pixel_noise_std_px
+        self.margin_px = margin_px
+        self.rng = np.random.default_rng(seed)
+
+    def frame(
+        self,
+        t_s: float,
+        vehicle_pos_ned_m: Vec3,
+        roll_rad: float,
+        pitch_rad: float,
+        yaw_rad: float,
+        marker_centre_ned_m: Vec3,
+        marker_yaw_rad: float = 0.0,
+        marker_roll_rad: float = 0.0,
+        marker_pitch_rad: float = 0.0,
+        sea_down_under_radar_m: float | None = None,
+    ) -> GeometricFrame:
+        """Project the marker at its true pose from the vehicle's true pose at ``t_s``.
+
+        ``sea_down_under_radar_m`` is the sea surface's down coordinate below the radar (waves); by default
+        the sea is flat at the marker's down coordinate.
+        """
+        R_ned_frd = _euler_zyx(roll_rad, pitch_rad, yaw_rad)
+        R_ned_cam = R_ned_frd @ self.R_frd_cam
+        body = np.asarray(vehicle_pos_ned_m, dtype=np.float64)
+        cam_ned = body + R_ned_frd @ self.cam_arm_frd_m
+        radar_ned = body + R_ned_frd @ self.radar_arm_frd_m
+        centre = np.asarray(marker_centre_ned_m, dtype=np.float64)
+        sea_down = centre[2] if sea_down_under_radar_m is None else sea_down_under_radar_m
+
+        corners_ned = marker_corners_ned(
+            marker_centre_ned_m, self.marker_size_m, marker_yaw_rad, marker_roll_rad, marker_pitch_rad
+        )
+        points_ned = np.vstack([corners_ned, centre])
+        points_cam = (points_ned - cam_ned) @ R_ned_cam  # R_cam_ned = R_ned_camᵀ, applied to rows
+        pixels = self.model.project(points_cam)
+        corners_true = pixels[:4]
+        visible = bool(np.all(points_cam[:4, 2] > 0.0) and np.all(self.model.in_image(corners_true, self.margin_px)))
+        noisy = corners_true + self.rng.normal(0.0, self.pixel_noise_std_px, size=(4, 2))
+        return GeometricFrame(
+            t_s=t_s,
+            visible=visible,
+            corners_px=noisy,
+            corners_true_px=corners_true,
+            centre_true_px=pixels[4],
+            marker_centre_ned_m=(float(centre[0]), float(centre[1]), float(centre[2])),
+            corners_ned_m=corners_ned,
+            camera_pos_ned_m=(float(cam_ned[0]), float(cam_ned[1]), float(cam_ned[2])),
+            R_ned_cam=R_ned_cam,
+            camera_height_m=float(centre[2] - cam_ned[2]),
+            radar_height_m=float(sea_down - radar_ned[2]),
+        )
