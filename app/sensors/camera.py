@@ -1,0 +1,235 @@
+"""The camera source: one interface that the V4L2 camera and the simulator (``sim.camera_render_source``) implement.
+
+A blocking capture runs in its own thread and hands frames to the asyncio loop through a one-slot, latest-wins
+handoff (:class:`LatestSlot`): when the consumer is slower than the camera, the older frame is dropped and
+counted, so the detector always gets the *newest* frame — never a stale buffered one (the thesis had to patch
+the oCam library for this, §4.2.3). Each frame is stamped with its capture time by a clock function the caller
+injects (mapped to the loop clock); this module reads no clock of its own.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Generic, Protocol, Self, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from app.errors import AppError
+
+T = TypeVar("T")
+Image = NDArray[np.uint8]
+
+
+class CameraError(AppError):
+    """Raised when the camera cannot be opened or stops delivering frames; ``device`` names it."""
+
+    def __init__(self, device: str, detail: str) -> None:
+        self.device = device
+        self.detail = detail
+        super().__init__(f"camera {device}: {detail}")
+
+
+@dataclass(frozen=True, slots=True)
+class ExposureControls:
+    """The camera's brightness and exposure, in device units (V4L2 ``brightness``; ``exposure_time_absolute``
+    in 100 µs steps). Thesis defaults: brightness 32, exposure 48."""
+
+    brightness: float = 32.0
+    exposure: float = 48.0
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CameraFrame:
+    """One raw (distorted) mono image and the loop-clock time ``t_s`` it was captured."""
+
+    t_s: float
+    seq: int  # the source's frame counter: gaps are frames that were dropped
+    image: Image  # H×W uint8
+    controls: ExposureControls  # in effect when the frame was captured
+
+
+class CameraSource(Protocol):
+    """What the app needs from a camera; the V4L2 adapter and the simulator implement it."""
+
+    @property
+    def controls(self) -> ExposureControls:
+        """The controls last requested (they apply to frames captured after the request)."""
+        ...
+
+    @property
+    def dropped_frames(self) -> int:
+        """Frames captured but never handed over because a newer one replaced them."""
+        ...
+
+    def set_controls(self, controls: ExposureControls) -> None:
+        """Request new brightness/exposure; never blocks."""
+        ...
+
+    async def next_frame(self) -> CameraFrame:
+        """The newest frame not yet handed over; waits for one. Raises ``CameraError`` if capture failed."""
+        ...
+
+    async def __aenter__(self) -> Self: ...
+
+    async def __aexit__(self, *exc_info: object) -> None: ...
+
+
+class LatestSlot(Generic[T]):
+    """A one-item, latest-wins handoff between threads: ``put`` replaces an untaken item and counts it dropped."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._item: T | None = None
+        self.put_count = 0
+        self.dropped = 0
+
+    def put(self, item: T) -> None:
+        with self._lock:
+            if self._item is not None:
+                self.dropped += 1
+            self._item = item
+            self.put_count += 1
+
+    def take(self) -> T | None:
+        """The newest item put and not yet taken (``None`` if there is none); the slot is empty afterwards."""
+        with self._lock:
+            item, self._item = self._item, None
+            return item
+
+
+class FrameGrabber(Protocol):
+    """A blocking frame producer, used only from the capture thread (the real V4L2 device, or a test double)."""
+
+    name: str
+
+    def grab(self) -> Image:
+        """Block until the next frame; raise ``CameraError`` when the device fails."""
+        ...
+
+    def apply_controls(self, controls: ExposureControls) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class _CaptureState:
+    stop: threading.Event = field(default_factory=threading.Event)
+    error: BaseException | None = None
+
+
+class ThreadedCamera:
+    """``CameraSource`` over a blocking :class:`FrameGrabber`: capture thread → :class:`LatestSlot` → the loop.
+
+    ``clock`` is called in the capture thread right after each grab and must return loop-clock seconds (the
+    default event loop's ``loop.time`` does); ``latency_s`` is subtracted (exposure + readout before the grab
+    returns). Control changes are applied by the capture thread between grabs.
+    """
+
+    def __init__(
+        self,
+        grabber: FrameGrabber,
+        clock: Callable[[], float],
+        *,
+        controls: ExposureControls | None = None,
+        latency_s: float = 0.0,
+    ) -> None:
+        self._grabber = grabber
+        self._clock = clock
+        self._latency_s = latency_s
+        self._controls = controls or ExposureControls()
+        self._pending_controls: ExposureControls | None = self._controls
+        self._controls_lock = threading.Lock()
+        self._slot: LatestSlot[CameraFrame] = LatestSlot()
+        self._state = _CaptureState()
+        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._new_frame = asyncio.Event()
+
+    @property
+    def controls(self) -> ExposureControls:
+        return self._controls
+
+    @property
+    def dropped_frames(self) -> int:
+        return self._slot.dropped
+
+    @property
+    def captured_frames(self) -> int:
+        return self._slot.put_count
+
+    def set_controls(self, controls: ExposureControls) -> None:
+        with self._controls_lock:
+            self._controls = controls
+            self._pending_controls = controls
+
+    def start(self) -> None:
+        """Start the capture thread (call from inside the running loop)."""
+        if self._thread is not None:
+            return
+        self._loop = asyncio.get_running_loop()
+        self._thread = threading.Thread(target=self._run, name=f"camera.capture[{self._grabber.name}]", daemon=True)
+        self._thread.start()
+
+    async def close(self) -> None:
+        """Stop the capture thread and release the device."""
+        self._state.stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            await asyncio.to_thread(thread.join)
+        self._grabber.close()
+
+    async def __aenter__(self) -> Self:
+        self.start()
+        return self
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        await self.close()
+
+    async def next_frame(self) -> CameraFrame:
+        while True:
+            self._new_frame.clear()
+            frame = self._slot.take()
+            if frame is not None:
+                return frame
+            if self._state.error is not None:
+                raise CameraError(self._grabber.name, "capture stopped") from self._state.error
+            if self._thread is None:
+                raise CameraError(self._grabber.name, "not started")
+            await self._new_frame.wait()
+
+    def _run(self) -> None:
+        seq = 0
+        in_effect = self._controls
+        try:
+            while not self._state.stop.is_set():
+                with self._controls_lock:
+                    pending, self._pending_controls = self._pending_controls, None
+                if pending is not None:
+                    self._grabber.apply_controls(pending)
+                    in_effect = pending
+                image = self._grabber.grab()
+                t_s = self._clock() - self._latency_s
+                self._slot.put(CameraFrame(t_s=t_s, seq=seq, image=image, controls=in_effect))
+                seq += 1
+                self._notify()
+        except BaseException as e:  # the loop side re-raises it as CameraError
+            self._state.error = e
+            self._notify()
+
+    def _notify(self) -> None:
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(self._new_frame.set)
+            except RuntimeError:  # loop closed between the check and the call
+                pass
+
+
+if TYPE_CHECKING:
+
+    def _is_a_camera_source(camera: ThreadedCamera) -> CameraSource:
+        return camera  # mypy checks ThreadedCamera against the protocol here
