@@ -1,0 +1,159 @@
+"""``python -m app.replay radar FILE [--json]``: replay a radar recording through the altitude estimator.
+
+FILE is a seapick recording (``.x4rec``) or a Novelda ``xethru_datafloat_*.dat`` / ``xethru_baseband_iq_*.dat``
+(see ``app.sensors.x4m03_recording``). Per frame it prints the range and amplitude of the strongest echo
+(after background removal), and the altitude or ``lost``; ``--json`` prints one JSON object instead. A
+plot (amplitude over range and time, with the altitude on top) goes to ``--plot`` (default under
+``runs/replay/``; ``--plot ''`` for none).
+
+Method: by default the adaptive clutter map, as the thesis replayed its crane test (§5.1.4); with
+``--calibration-frames N`` the background map from the first N frames (which must see the sea out of
+range: a failed calibration is reported with its reason, exit status 2). Recordings hold no attitude,
+so no tilt correction is applied.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from app.errors import AppError
+from app.estimators.radar_altitude import (
+    AltitudeEstimate,
+    RadarAltitudeConfig,
+    RadarAltitudeEstimator,
+    calibrate_background,
+)
+from app.sensors.radar import RangeAxis
+from app.sensors.x4m03_recording import DEFAULT_FPS_HZ, Recording, read_recording
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def replay_radar(recording: Recording, config: RadarAltitudeConfig, calibration_frames: int) -> list[AltitudeEstimate]:
+    """Estimates for every frame; raises ValueError with the reason when the calibration fails."""
+    frames = list(recording.frames())
+    estimator = RadarAltitudeEstimator(config)
+    if config.method == "background":
+        result = calibrate_background(frames[:calibration_frames], config)
+        estimator.calibrate(result)  # ValueError("calibration failed: …") when it did not work
+    return [estimator.update(f) for f in frames]
+
+
+def _number(x: float | None, digits: int) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(x, digits)
+
+
+def as_rows(recording: Recording, estimates: list[AltitudeEstimate]) -> list[dict[str, object]]:
+    return [
+        {
+            "t_s": round(float(t), 4),
+            "counter": int(c),
+            "range_m": _number(e.range_m, 4),
+            "amplitude": _number(e.amplitude, 6),
+            "altitude_m": _number(e.altitude_m, 4) if e.accepted else None,
+            "status": e.status,
+        }
+        for t, c, e in zip(recording.t_s, recording.counters, estimates, strict=True)
+    ]
+
+
+def plot(recording: Recording, estimates: list[AltitudeEstimate], path: Path) -> Path | None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    path.parent.mkdir(parents=True, exist_ok=True)
+    axis, t = recording.axis, recording.t_s
+    fig, ax = plt.subplots(figsize=(10, 4))
+    extent = (float(t[0]), float(t[-1]) if len(t) > 1 else float(t[0]) + 1.0, axis.start_m, axis.end_m)
+    amplitude_db = 20.0 * np.log10(np.abs(recording.baseband).T + 1e-7)
+    image = ax.imshow(amplitude_db, aspect="auto", origin="lower", extent=extent, cmap="viridis", vmin=-90)
+    fig.colorbar(image, ax=ax, label="|I + jQ|, dB")
+    accepted = [(float(tt), e.altitude_m) for tt, e in zip(t, estimates, strict=True) if e.accepted]
+    if accepted:
+        ax.plot(*zip(*accepted, strict=True), "r.", markersize=3, label="altitude (accepted)")
+        ax.legend(loc="upper right")
+    ax.set_xlabel("t, s")
+    ax.set_ylabel("range / altitude, m")
+    ax.set_title(f"{recording.path.name}: |I + jQ| and the altitude")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def radar_main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="python -m app.replay radar", description=__doc__.split("\n")[0])
+    ap.add_argument("file", type=Path)
+    ap.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    ap.add_argument("--calibration-frames", type=int, default=0, help="background map from the first N frames")
+    ap.add_argument("--threshold", type=float, default=RadarAltitudeConfig().threshold_amplitude, help="T_abs")
+    ap.add_argument("--axis", nargs=3, type=float, metavar=("START_M", "BIN_M", "BINS"), help="for datafloat files")
+    ap.add_argument("--fps", type=float, default=DEFAULT_FPS_HZ, help="frame rate of Novelda files, Hz")
+    ap.add_argument("--plot", default=None, help="PNG path ('' for none; default runs/replay/<name>_radar.png)")
+    args = ap.parse_args(argv)
+    axis = RangeAxis(args.axis[0], args.axis[1], int(args.axis[2])) if args.axis else None
+    try:
+        recording = read_recording(args.file, axis, args.fps)
+    except (AppError, OSError) as e:
+        print(f"cannot replay: {e}", file=sys.stderr)
+        return 2
+    method: Literal["background", "clutter_map"] = "background" if args.calibration_frames > 0 else "clutter_map"
+    config = RadarAltitudeConfig(method=method, threshold_amplitude=args.threshold)
+    try:
+        estimates = replay_radar(recording, config, args.calibration_frames)
+    except ValueError as e:
+        print(f"cannot replay: {e}", file=sys.stderr)
+        return 2
+    rows = as_rows(recording, estimates)
+    figure_path = ROOT / "runs" / "replay" / f"{args.file.name}_radar.png" if args.plot is None else Path(args.plot)
+    figure = plot(recording, estimates, figure_path) if str(figure_path) and args.plot != "" else None
+    summary = {
+        "frames": len(rows),
+        "tracking": sum(r["status"] == "tracking" for r in rows),
+        "lost": sum(r["status"] == "lost" for r in rows),
+        "truncated_bytes": recording.truncated_bytes,
+    }
+    if args.json:
+        head = {"file": str(args.file), "kind": recording.kind, "method": method}
+        axis_out = {"start_m": recording.axis.start_m, "bin_m": recording.axis.bin_m, "bins": recording.axis.bins}
+        print(
+            json.dumps({**head, "axis": axis_out, "summary": summary, "figure": figure and str(figure), "frames": rows})
+        )
+        return 0
+    print(f"{args.file} ({recording.kind}, {recording.axis.bins} bins from {recording.axis.start_m:.4f} m), {method}")
+    print(f"{'t_s':>9} {'counter':>8} {'range_m':>8} {'amplitude':>10}  altitude_m")
+    for r in rows:
+        altitude = "lost" if r["altitude_m"] is None else f"{r['altitude_m']:.3f}"
+        print(f"{r['t_s']:9.3f} {r['counter']:8d} {r['range_m']:8.3f} {r['amplitude']:10.6f}  {altitude}")
+    print(json.dumps(summary))
+    if figure:
+        print(f"figure: {figure}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if not args or args[0] != "radar":
+        print("usage: python -m app.replay radar FILE [--json] [options]", file=sys.stderr)
+        return 2
+    try:
+        return radar_main(args[1:])
+    except BrokenPipeError:  # piped into head: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
