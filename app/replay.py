@@ -27,17 +27,19 @@ import numpy as np
 from app.errors import AppError
 from app.estimators.radar_altitude import (
     AltitudeEstimate,
-    RadarAltitudeConfig,
     RadarAltitudeEstimator,
     calibrate_background,
 )
 from app.sensors.radar import RangeAxis
 from app.sensors.x4m03_recording import DEFAULT_FPS_HZ, Recording, read_recording
+from app.settings import RadarAltitudeSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def replay_radar(recording: Recording, config: RadarAltitudeConfig, calibration_frames: int) -> list[AltitudeEstimate]:
+def replay_radar(
+    recording: Recording, config: RadarAltitudeSettings, calibration_frames: int
+) -> list[AltitudeEstimate]:
     """Estimates for every frame; raises ValueError with the reason when the calibration fails."""
     frames = list(recording.frames())
     estimator = RadarAltitudeEstimator(config)
@@ -98,7 +100,7 @@ def radar_main(argv: list[str]) -> int:
     ap.add_argument("file", type=Path)
     ap.add_argument("--json", action="store_true", help="one JSON object on stdout")
     ap.add_argument("--calibration-frames", type=int, default=0, help="background map from the first N frames")
-    ap.add_argument("--threshold", type=float, default=RadarAltitudeConfig().threshold_amplitude, help="T_abs")
+    ap.add_argument("--threshold", type=float, default=RadarAltitudeSettings().threshold_amplitude, help="T_abs")
     ap.add_argument("--axis", nargs=3, type=float, metavar=("START_M", "BIN_M", "BINS"), help="for datafloat files")
     ap.add_argument("--fps", type=float, default=DEFAULT_FPS_HZ, help="frame rate of Novelda files, Hz")
     ap.add_argument("--plot", default=None, help="PNG path ('' for none; default runs/replay/<name>_radar.png)")
@@ -110,7 +112,7 @@ def radar_main(argv: list[str]) -> int:
         print(f"cannot replay: {e}", file=sys.stderr)
         return 2
     method: Literal["background", "clutter_map"] = "background" if args.calibration_frames > 0 else "clutter_map"
-    config = RadarAltitudeConfig(method=method, threshold_amplitude=args.threshold)
+    config = RadarAltitudeSettings(method=method, threshold_amplitude=args.threshold)
     try:
         estimates = replay_radar(recording, config, args.calibration_frames)
     except ValueError as e:

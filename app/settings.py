@@ -7,13 +7,14 @@ blocks. An invalid field is reported as ``ConfigError`` naming its YAML path and
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from app.errors import ConfigError
 
+ModelT = TypeVar("ModelT", bound=BaseModel)
 SETTINGS_DIR = Path(__file__).resolve().parent.parent / "settings"
 
 
@@ -121,6 +122,89 @@ class DetectorSettings(_Model):
     roi_margin: float = Field(2.0, ge=1.0, le=10.0, description="tracking window = margin × last marker size, ratio")
 
 
+class RadarSettings(_Model):
+    """The X4M03 and its driver; defaults are the thesis's (§4.2.2), which are also Novelda's."""
+
+    port: str = Field("/dev/ttyACM0", description="serial device (USB CDC-ACM 03EB:6124) or a pty path")
+    baudrate: int = Field(115200, ge=600, le=10_000_000, description="UART rate (ignored over USB), baud")
+    tx_power: int = Field(2, ge=0, le=3, description="0 off, 1 low, 2 medium, 3 high, level")
+    dac_min: int = Field(949, ge=0, le=2047, description="DAC sweep minimum, counts")
+    dac_max: int = Field(1100, ge=0, le=2047, description="DAC sweep maximum, counts")
+    iterations: int = Field(16, ge=1, le=255, description="sweep iterations per frame, count")
+    pulses_per_step: int = Field(300, ge=1, le=65535, description="pulses per DAC step, count")
+    fps_hz: float = Field(10.0, ge=1.0, le=50.0, description="frame rate requested (the X4 runs 10 as 10.032), Hz")
+    frame_area_offset_m: float = Field(0.18, ge=0.0, le=1.0, description="antenna-specific range offset, m")
+    frame_area_start_m: float = Field(0.4, ge=-1.0, le=9.8, description="first range wanted, m")
+    frame_area_end_m: float = Field(5.0, ge=-1.0, le=9.9, description="last range wanted, m")
+    downconversion: Literal[1] = Field(1, description="1 = baseband I/Q (the altitude estimator needs it), flag")
+    tx_center_frequency: Literal[3, 4] = Field(3, description="3 = 7.29 GHz, 4 = 8.748 GHz, band")
+    prf_div: int | None = Field(None, ge=4, le=255, description="pulse-rate divider; None keeps the board's 16")
+    frame_latency_s: float | None = Field(
+        None, ge=0.0, le=1.0, description="received → measured; None: half the sweep (24 ms for the thesis), s"
+    )
+    command_timeout_s: float = Field(2.0, ge=0.05, le=30.0, description="wait for ACK/REPLY (Novelda: 2 s), s")
+    init_timeout_s: float = Field(3.0, ge=0.05, le=30.0, description="wait for x4driver_init's ACK (≥ 2 s), s")
+    ready_timeout_s: float = Field(5.0, ge=0.1, le=60.0, description="ping until the device is ready, s")
+    reconnect_interval_s: float = Field(1.0, ge=0.01, le=60.0, description="pause between reconnect attempts, s")
+    queue_size: int = Field(4, ge=1, le=256, description="frames kept for a slow reader (oldest dropped), count")
+    lever_arm_frd_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="antenna position from the body origin, forward/right/down, m"
+    )
+
+    @model_validator(mode="after")
+    def _ranges_are_ordered(self) -> RadarSettings:
+        if self.dac_min >= self.dac_max:
+            raise ValueError(f"dac_min ({self.dac_min}) must be below dac_max ({self.dac_max})")
+        if self.frame_area_start_m >= self.frame_area_end_m:
+            raise ValueError(
+                f"frame_area_start_m ({self.frame_area_start_m}) must be below frame_area_end_m "
+                f"({self.frame_area_end_m})"
+            )
+        return self
+
+    def sweep_s(self) -> float:
+        """Time one frame's sweep takes: iterations · pps · (dac_max − dac_min + 1) / PRF, PRF = 243 MHz / prf_div."""
+        prf_hz = 243e6 / (self.prf_div if self.prf_div is not None else 16)
+        return self.iterations * self.pulses_per_step * (self.dac_max - self.dac_min + 1) / prf_hz
+
+
+class RadarAltitudeSettings(_Model):
+    """The radar altitude estimator (``app/estimators/radar_altitude.py`` has the equations)."""
+
+    method: Literal["background", "clutter_map"] = Field(
+        "background", description="background map (thesis §4.2.2) or adaptive clutter map (thesis eq. 5.1)"
+    )
+    domain: Literal["complex", "amplitude"] = Field(
+        "complex", description="maps on the complex baseband, or on amplitudes as the thesis did"
+    )
+    threshold_amplitude: float = Field(
+        3e-4, ge=0.0, le=1.0, description="T_abs (the thesis used 0.005 with its amplitude clutter map), amplitude"
+    )
+    noise_factor: float = Field(6.0, ge=0.0, le=100.0, description="κ: threshold over the per-bin noise, ratio")
+    gate_m: float = Field(0.15, ge=0.0, le=5.0, description="gate around the last accepted range, m")
+    max_range_rate_mps: float = Field(
+        2.0, ge=0.0, le=20.0, description="the gate grows by this while no candidate is accepted, m/s"
+    )
+    timeout_s: float = Field(1.0, ge=0.0, le=10.0, description="no accepted echo for this long → lost (thesis 1), s")
+    min_range_m: float = Field(0.0, ge=0.0, le=10.0, description="nearest range searched when acquiring, m")
+    clutter_alpha: float = Field(0.1, gt=0.0, lt=1.0, description="α of thesis eq. 5.1 (≈ 1 s at 10 Hz), ratio")
+    peak: Literal["gaussian", "leading_edge"] = Field(
+        "gaussian", description="sub-bin peak of the strongest return, or its leading edge (first return)"
+    )
+    pulse_sigma_m: float = Field(0.055, gt=0.0, le=1.0, description="σ of the range response (leading edge), m")
+    leading_edge_fraction: float = Field(0.5, gt=0.0, lt=1.0, description="leading edge level / peak, ratio")
+    tilt: Literal["specular", "boresight"] = Field(
+        "specular", description="sea as a mirror (nadir return whatever the tilt) or a diffuse surface"
+    )
+    calibration_min_frames: int = Field(10, ge=2, le=10_000, description="background frames needed, count")
+    calibration_max_change: float = Field(
+        3e-4, ge=0.0, le=1.0, description="a bin changing more than this (rms) holds an echo, amplitude"
+    )
+    calibration_change_factor: float = Field(
+        10.0, ge=1.0, le=1000.0, description="… or more than this × the quietest bins' change, ratio"
+    )
+
+
 class Settings(_Model):
     connection: ConnectionSettings = ConnectionSettings()
     telemetry: TelemetrySettings = TelemetrySettings()
@@ -129,6 +213,8 @@ class Settings(_Model):
     runner: RunnerSettings = RunnerSettings()
     camera: CameraSettings = CameraSettings()
     detector: DetectorSettings = DetectorSettings()
+    radar: RadarSettings = RadarSettings()
+    radar_altitude: RadarAltitudeSettings = RadarAltitudeSettings()
 
 
 def format_validation_error(source: str, exc: ValidationError, model: type[BaseModel]) -> ConfigError:
@@ -188,6 +274,14 @@ def _allowed_range(model: type[BaseModel], loc: list[str]) -> str:
     return f"{'' if lo is None else lo}..{'' if hi is None else hi}{unit}"
 
 
+def validate_section(model: type[ModelT], data: dict[str, Any], source: str) -> ModelT:
+    """One settings section from a mapping; raises ``ConfigError`` naming the field and its allowed range."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        raise format_validation_error(source, e, model) from e
+
+
 def load_yaml(path: Path) -> dict[str, Any]:
     try:
         data = yaml.safe_load(path.read_text()) or {}
@@ -203,8 +297,4 @@ def load_yaml(path: Path) -> dict[str, Any]:
 def load_settings(path: Path | None = None) -> Settings:
     """Load a settings profile; ``None`` loads ``settings/default.yaml``."""
     path = path or SETTINGS_DIR / "default.yaml"
-    data = load_yaml(path)
-    try:
-        return Settings.model_validate(data)
-    except ValidationError as e:
-        raise format_validation_error(str(path), e, Settings) from e
+    return validate_section(Settings, load_yaml(path), str(path))

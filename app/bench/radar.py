@@ -18,7 +18,6 @@ wire_frames_per_s times the streaming parser on the same frames as bytes.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import subprocess
 import sys
@@ -28,19 +27,20 @@ from pathlib import Path
 
 import numpy as np
 
-from app.estimators.radar_altitude import RadarAltitudeConfig, RadarAltitudeEstimator, calibrate_background
+from app.estimators.radar_altitude import RadarAltitudeEstimator, calibrate_background
 from app.sensors.x4m03_codec import data_float_payload, encode_noescape
 from app.sensors.x4m03_parser import X4M03Parser
 from app.sensors.x4m03_recording import read_recording
+from app.settings import RadarAltitudeSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 METHODS = {  # the thesis's peak (max + Gaussian interpolation), our leading-edge retracker, the thesis's amplitude maps
-    "background": RadarAltitudeConfig(method="background"),
-    "clutter_map": RadarAltitudeConfig(method="clutter_map"),
-    "background_le": RadarAltitudeConfig(method="background", peak="leading_edge"),
-    "clutter_map_le": RadarAltitudeConfig(method="clutter_map", peak="leading_edge"),
-    "background_amplitude": RadarAltitudeConfig(method="background", domain="amplitude"),
-    "clutter_map_amplitude": RadarAltitudeConfig(method="clutter_map", domain="amplitude"),
+    "background": RadarAltitudeSettings(method="background"),
+    "clutter_map": RadarAltitudeSettings(method="clutter_map"),
+    "background_le": RadarAltitudeSettings(method="background", peak="leading_edge"),
+    "clutter_map_le": RadarAltitudeSettings(method="clutter_map", peak="leading_edge"),
+    "background_amplitude": RadarAltitudeSettings(method="background", domain="amplitude"),
+    "clutter_map_amplitude": RadarAltitudeSettings(method="clutter_map", domain="amplitude"),
 }
 BANDS_M = [(0.5 + 0.5 * k, 1.0 + 0.5 * k) for k in range(8)]
 GOAL_BAND_M = (0.5, 4.0)
@@ -92,8 +92,8 @@ def evaluate(data: Path) -> tuple[dict[tuple[int, str], Samples], float, int]:
         n_cal = int(run["calibration_frames"])
         attitude = list(zip(truth["roll_rad"].tolist(), truth["pitch_rad"].tolist(), strict=True))
         for name, method in METHODS.items():
-            config = dataclasses.replace(method, antenna_offset_frd_m=offset)
-            estimator = RadarAltitudeEstimator(config)
+            config = method
+            estimator = RadarAltitudeEstimator(config, antenna_offset_frd_m=offset)
             if config.method == "background":
                 calibration = calibrate_background(frames[:n_cal], config)
                 if not calibration.ok:

@@ -39,39 +39,10 @@ from typing import Literal
 import numpy as np
 
 from app.sensors.radar import RadarFrame, RangeAxis
+from app.settings import RadarAltitudeSettings
 
 RAYLEIGH_MEDIAN = math.sqrt(math.log(4.0))  # median of |CN(0, 1)|
 Status = Literal["tracking", "holding", "lost", "uncalibrated"]
-
-
-@dataclass(frozen=True, slots=True)
-class RadarAltitudeConfig:
-    method: Literal["background", "clutter_map"] = "background"
-    domain: Literal["complex", "amplitude"] = "complex"
-    threshold_amplitude: float = 3e-4  # T_abs; the thesis used 0.005 with its amplitude clutter map
-    noise_factor: float = 6.0  # κ
-    gate_m: float = 0.15  # g, around the last accepted range (+ v_max·Δt: 0.35 m at 10 Hz)
-    max_range_rate_mps: float = 2.0  # v_max: the gate grows by this while no candidate is accepted
-    timeout_s: float = 1.0  # thesis: 1 s
-    min_range_m: float = 0.0  # r_min for acquisition
-    clutter_alpha: float = 0.1  # α of eq. 5.1 (time constant ≈ 1 s at 10 Hz)
-    peak: Literal["gaussian", "leading_edge"] = "gaussian"
-    pulse_sigma_m: float = 0.055  # σ of the range response (leading edge)
-    leading_edge_fraction: float = 0.5
-    tilt: Literal["specular", "boresight"] = "specular"
-    antenna_offset_frd_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    calibration_min_frames: int = 10
-    calibration_max_change: float = 3e-4  # a bin changing more than this (rms) holds an echo
-    calibration_change_factor: float = 10.0  # … or more than this × the quietest bins' change
-
-    def __post_init__(self) -> None:
-        if not 0.0 < self.clutter_alpha < 1.0:
-            raise ValueError(f"clutter_alpha must be in (0, 1), got {self.clutter_alpha}")
-        for name in ("threshold_amplitude", "noise_factor", "gate_m", "timeout_s", "max_range_rate_mps"):
-            if not getattr(self, name) >= 0.0:
-                raise ValueError(f"{name} must be ≥ 0, got {getattr(self, name)}")
-        if self.calibration_min_frames < 2:
-            raise ValueError("calibration needs at least 2 frames")
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -98,7 +69,7 @@ class AltitudeEstimate:
     age_s: float | None  # since the last accepted candidate
 
 
-def calibrate_background(frames: Sequence[RadarFrame], config: RadarAltitudeConfig) -> BackgroundCalibration:
+def calibrate_background(frames: Sequence[RadarFrame], config: RadarAltitudeSettings) -> BackgroundCalibration:
     """Average ``frames`` (captured with the sea out of range) into a background map, after checking them."""
     n = len(frames)
     if n < config.calibration_min_frames:
@@ -127,8 +98,15 @@ def calibrate_background(frames: Sequence[RadarFrame], config: RadarAltitudeConf
 class RadarAltitudeEstimator:
     """Frames (and the attitude at their time) in, altitude estimates out; deterministic, no clock."""
 
-    def __init__(self, config: RadarAltitudeConfig | None = None, calibration: BackgroundCalibration | None = None):
-        self.config = config if config is not None else RadarAltitudeConfig()
+    def __init__(
+        self,
+        config: RadarAltitudeSettings | None = None,
+        calibration: BackgroundCalibration | None = None,
+        antenna_offset_frd_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ):
+        """``antenna_offset_frd_m``: the radar's lever arm (``RadarSettings.lever_arm_frd_m``)."""
+        self.config = config if config is not None else RadarAltitudeSettings()
+        self.antenna_offset_frd_m = antenna_offset_frd_m
         self.calibration: BackgroundCalibration | None = None
         self._clutter: np.ndarray | None = None
         self._last_range_m: float | None = None
@@ -211,7 +189,7 @@ class RadarAltitudeEstimator:
         c = self.config
         cos_tilt = math.cos(roll_rad) * math.cos(pitch_rad)
         antenna_m = range_m if c.tilt == "specular" else range_m * cos_tilt
-        ox, oy, oz = c.antenna_offset_frd_m
+        ox, oy, oz = self.antenna_offset_frd_m
         # (R_nb o)_down = −sin θ o_x + sin φ cos θ o_y + cos φ cos θ o_z
         down_m = -math.sin(pitch_rad) * ox + math.sin(roll_rad) * math.cos(pitch_rad) * oy + cos_tilt * oz
         return antenna_m + down_m

@@ -44,7 +44,7 @@ from app.sensors.x4m03_commands import X4Param
 from app.sensors.x4m03_frame_area import BASEBAND_BIN_M, axis_from_frame_area
 from app.sensors.x4m03_link import LatestQueue, SerialLink
 from app.sensors.x4m03_parser import ParserStats, X4M03Parser
-from app.sensors.x4m03_settings import X4M03Settings
+from app.settings import RadarSettings
 
 PING_RETRY_S = 0.1
 STOP_TIMEOUT_S = 0.5
@@ -83,7 +83,7 @@ def _reply_to(param: X4Param) -> Expect:
 class X4M03Radar:
     """The ``Radar`` implementation for a Novelda X4M03 (XEP firmware) on a serial port."""
 
-    def __init__(self, settings: X4M03Settings, clock: Clock | None = None) -> None:
+    def __init__(self, settings: RadarSettings, clock: Clock | None = None) -> None:
         self.settings = settings
         self.port = settings.port
         self.clock: Clock = clock if clock is not None else LoopClock()

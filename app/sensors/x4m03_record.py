@@ -19,7 +19,7 @@ from app.errors import AppError
 from app.sensors.radar import Radar
 from app.sensors.x4m03_driver import X4M03Radar
 from app.sensors.x4m03_recording import RecordingWriter, read_recording
-from app.sensors.x4m03_settings import radar_settings
+from app.settings import RadarSettings, validate_section
 
 
 async def record(radar: Radar, out: Path, frames: int, header: dict[str, object]) -> int:
@@ -42,11 +42,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("port")
     ap.add_argument("out", type=Path)
     ap.add_argument("--frames", type=int, default=100)
-    ap.add_argument("--settings", type=Path, help="JSON object of X4M03Settings fields")
+    ap.add_argument("--settings", type=Path, help="JSON object of RadarSettings fields")
     args = ap.parse_args(sys.argv[1:] if argv is None else argv)
     try:
         fields = json.loads(args.settings.read_text()) if args.settings else {}
-        settings = radar_settings({**fields, "port": args.port}, str(args.settings or "radar settings"))
+        settings = validate_section(
+            RadarSettings, {**fields, "port": args.port}, str(args.settings or "radar settings")
+        )
     except (AppError, OSError, ValueError) as e:
         print(f"cannot record: {e}", file=sys.stderr)
         return 2

@@ -54,3 +54,27 @@ def test_thesis_guidance_profile_turns_the_lead_off():
 
     s = load_settings(SETTINGS_DIR / "thesis-guidance.yaml")
     assert s.guidance.velocity_lead_s == 0.0 and s.guidance.transient_distance_m == 0.5
+
+
+def test_default_profile_carries_the_thesis_radar_settings():
+    s = load_settings()
+    assert (s.radar.tx_power, s.radar.dac_min, s.radar.dac_max, s.radar.iterations) == (2, 949, 1100, 16)
+    assert (s.radar.pulses_per_step, s.radar.fps_hz, s.radar.frame_area_offset_m) == (300, 10.0, 0.18)
+    assert (s.radar.frame_area_start_m, s.radar.frame_area_end_m) == (0.4, 5.0)
+    assert s.radar_altitude.method == "background" and s.radar_altitude.timeout_s == 1.0
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "path", "fragment"),
+    [
+        ("radar:\n  tx_power: 7\n", "radar.tx_power", "allowed 0..3 level"),
+        ("radar_altitude:\n  clutter_alpha: 1.5\n", "radar_altitude.clutter_alpha", "allowed 0.0..1.0 ratio"),
+        ("radar:\n  dac_min: 1200\n", "radar", "dac_min (1200) must be below dac_max (1100)"),
+    ],
+)
+def test_a_bad_radar_field_names_its_path(tmp_path, yaml_text, path, fragment):
+    p = tmp_path / "s.yaml"
+    p.write_text(yaml_text)
+    with pytest.raises(ConfigError) as e:
+        load_settings(p)
+    assert e.value.path == path and fragment in e.value.message

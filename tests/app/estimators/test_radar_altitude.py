@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from app.estimators.radar_altitude import (
-    RadarAltitudeConfig,
     RadarAltitudeEstimator,
     calibrate_background,
 )
 from app.sensors.radar import RadarFrame, RangeAxis
 from app.sensors.x4m03_frame_area import quantise_frame_area
+from app.settings import RadarAltitudeSettings
 
 AXIS = quantise_frame_area(0.4, 5.0, 0.18)  # 91 bins from 0.385761 m
 FC_HZ, C_MPS, SIGMA_M = 7.29e9, 299_792_458.0, 0.055
@@ -35,11 +35,13 @@ def frame(t_s: float, *echoes: tuple[float, float], noise: float = 1.8e-5, stati
     return RadarFrame(t_s, int(t_s * 10), AXIS, z.astype(np.complex64))
 
 
-def calibrated(config: RadarAltitudeConfig | None = None) -> RadarAltitudeEstimator:
-    config = config or RadarAltitudeConfig()
+def calibrated(
+    config: RadarAltitudeSettings | None = None, antenna_offset_frd_m=(0.0, 0.0, 0.0)
+) -> RadarAltitudeEstimator:
+    config = config or RadarAltitudeSettings()
     calibration = calibrate_background([frame(-3 + 0.1 * k) for k in range(20)], config)
     assert calibration.ok, calibration.reason
-    return RadarAltitudeEstimator(config, calibration)
+    return RadarAltitudeEstimator(config, calibration, antenna_offset_frd_m)
 
 
 def test_ranges_come_from_the_quantised_frame_area_not_the_thesis_formula():
@@ -56,7 +58,7 @@ def test_sub_bin_interpolation_finds_the_echo_between_bins(fraction):
 
 
 def test_background_map_lets_a_weak_sea_echo_through_a_strong_direct_path():
-    uncalibrated = RadarAltitudeEstimator(RadarAltitudeConfig())
+    uncalibrated = RadarAltitudeEstimator(RadarAltitudeSettings())
     assert uncalibrated.update(frame(0.0, (2.5, 0.002))).status == "uncalibrated"
     e = calibrated().update(frame(0.0, (2.5, 0.002)))
     assert e.altitude_m == pytest.approx(2.5, abs=0.005)
@@ -64,7 +66,7 @@ def test_background_map_lets_a_weak_sea_echo_through_a_strong_direct_path():
 
 
 def test_calibration_with_the_sea_in_range_fails_and_says_why():
-    config = RadarAltitudeConfig()
+    config = RadarAltitudeSettings()
     rng = np.random.default_rng(1)
     sea = [frame(0.1 * k, (3.0 + rng.normal(0, 0.02), 0.004 * rng.rayleigh())) for k in range(20)]
     result = calibrate_background(sea, config)
@@ -75,14 +77,14 @@ def test_calibration_with_the_sea_in_range_fails_and_says_why():
 
 
 def test_calibration_needs_enough_frames_on_one_axis():
-    config = RadarAltitudeConfig(calibration_min_frames=10)
+    config = RadarAltitudeSettings(calibration_min_frames=10)
     assert calibrate_background([frame(0.0)] * 3, config).reason == "need at least 10 frames, got 3"
     other = RadarFrame(0.0, 0, RangeAxis(0.3, AXIS.bin_m, AXIS.bins), frame(0.0).baseband)
     assert "range axis changed" in calibrate_background([frame(0.0)] * 10 + [other], config).reason
 
 
 def test_an_echo_below_the_threshold_is_not_an_altitude():
-    e = calibrated(RadarAltitudeConfig(threshold_amplitude=0.005)).update(frame(0.0, (2.0, 0.002)))
+    e = calibrated(RadarAltitudeSettings(threshold_amplitude=0.005)).update(frame(0.0, (2.0, 0.002)))
     assert e.status == "lost" and e.altitude_m is None and not e.accepted
     assert e.range_m == pytest.approx(2.0, abs=0.01)  # the strongest echo is still reported
 
@@ -96,7 +98,7 @@ def test_the_gate_keeps_the_track_when_a_stronger_echo_appears_elsewhere():
 
 
 def test_no_echo_holds_the_last_altitude_until_the_timeout_then_lost_then_reacquires_anywhere():
-    est = calibrated(RadarAltitudeConfig(timeout_s=1.0))
+    est = calibrated(RadarAltitudeSettings(timeout_s=1.0))
     assert est.update(frame(0.0, (2.0, 0.004))).accepted
     held = est.update(frame(0.5))
     assert (held.status, held.altitude_m, held.age_s) == ("holding", pytest.approx(2.0, abs=0.005), 0.5)
@@ -107,7 +109,7 @@ def test_no_echo_holds_the_last_altitude_until_the_timeout_then_lost_then_reacqu
 
 
 def test_the_gate_widens_while_frames_are_missed():
-    est = calibrated(RadarAltitudeConfig(gate_m=0.1, max_range_rate_mps=1.0, timeout_s=2.0))
+    est = calibrated(RadarAltitudeSettings(gate_m=0.1, max_range_rate_mps=1.0, timeout_s=2.0))
     est.update(frame(0.0, (2.0, 0.004)))
     assert not est.update(frame(0.1, (2.5, 0.004))).accepted  # 0.5 m in 0.1 s: outside 0.1 + 0.1 m
     assert est.update(frame(0.5, (2.5, 0.004))).accepted  # 0.5 s later the gate is 0.6 m
@@ -121,20 +123,20 @@ def test_the_gate_widens_while_frames_are_missed():
     ],
 )
 def test_tilt_and_the_antenna_lever_arm_are_corrected(tilt, expected):
-    est = calibrated(RadarAltitudeConfig(tilt=tilt, antenna_offset_frd_m=(0.0, 0.0, 0.1)))
+    est = calibrated(RadarAltitudeSettings(tilt=tilt), antenna_offset_frd_m=(0.0, 0.0, 0.1))
     assert est.update(frame(0.0, (2.0, 0.005)), roll_rad=0.2, pitch_rad=0.1).altitude_m == pytest.approx(
         expected, abs=0.002
     )
 
 
 def test_forward_lever_arm_under_pitch_moves_the_reference_point():
-    est = calibrated(RadarAltitudeConfig(antenna_offset_frd_m=(0.3, 0.0, 0.0)))
+    est = calibrated(antenna_offset_frd_m=(0.3, 0.0, 0.0))
     e = est.update(frame(0.0, (2.0, 0.005)), pitch_rad=0.2)  # nose up: the antenna in front rises
     assert e.altitude_m == pytest.approx(2.0 - math.sin(0.2) * 0.3, abs=0.002)
 
 
 def test_clutter_map_tracks_a_moving_echo_without_calibration():
-    est = RadarAltitudeEstimator(RadarAltitudeConfig(method="clutter_map"))
+    est = RadarAltitudeEstimator(RadarAltitudeSettings(method="clutter_map"))
     heights = [2.0 + 0.3 * math.sin(0.4 * k) for k in range(60)]
     estimates = [est.update(frame(0.1 * k, (h, 0.004))) for k, h in enumerate(heights)]
     errors = [abs(e.altitude_m - h) for e, h in zip(estimates[5:], heights[5:], strict=True) if e.accepted]
@@ -142,7 +144,7 @@ def test_clutter_map_tracks_a_moving_echo_without_calibration():
 
 
 def test_clutter_map_absorbs_an_echo_that_stops_moving_as_the_thesis_feared():
-    est = RadarAltitudeEstimator(RadarAltitudeConfig(method="clutter_map", timeout_s=1.0))
+    est = RadarAltitudeEstimator(RadarAltitudeSettings(method="clutter_map", timeout_s=1.0))
     moving = [est.update(frame(0.1 * k, (2.0 + 0.02 * k, 0.004))) for k in range(10)]
     assert moving[-1].accepted
     still = [est.update(frame(1.0 + 0.1 * k, (2.2, 0.004))) for k in range(60)]
@@ -150,21 +152,21 @@ def test_clutter_map_absorbs_an_echo_that_stops_moving_as_the_thesis_feared():
 
 
 def test_thesis_amplitude_domain_background_works_too():
-    est = calibrated(RadarAltitudeConfig(domain="amplitude"))
+    est = calibrated(RadarAltitudeSettings(domain="amplitude"))
     assert est.update(frame(0.0, (3.0, 0.003))).altitude_m == pytest.approx(3.0, abs=0.01)
 
 
 @pytest.mark.parametrize(("field", "value"), [("clutter_alpha", 1.5), ("gate_m", -0.1), ("calibration_min_frames", 1)])
 def test_bad_configuration_is_refused(field, value):
     with pytest.raises(ValueError, match=field.split("_")[0]):
-        RadarAltitudeConfig(**{field: value})
+        RadarAltitudeSettings(**{field: value})
 
 
 def test_leading_edge_finds_the_first_return_where_later_glints_pull_the_peak_long():
     spread = frame(0.0, (2.0, 0.004), (2.06, 0.004), (2.12, 0.003))  # nadir, then off-nadir glints
     peak = calibrated().update(spread).altitude_m
-    edge = calibrated(RadarAltitudeConfig(peak="leading_edge")).update(spread).altitude_m
+    edge = calibrated(RadarAltitudeSettings(peak="leading_edge")).update(spread).altitude_m
     assert peak > 2.04
     assert edge == pytest.approx(2.0, abs=0.015)
-    single = calibrated(RadarAltitudeConfig(peak="leading_edge")).update(frame(0.0, (3.33, 0.004)))
+    single = calibrated(RadarAltitudeSettings(peak="leading_edge")).update(frame(0.0, (3.33, 0.004)))
     assert single.altitude_m == pytest.approx(3.33, abs=0.003)

@@ -13,7 +13,7 @@ from app.errors import ConfigError
 from app.sensors.radar import RadarCommandError, RadarDisconnected, RadarFrame, RadarTimeout
 from app.sensors.x4m03_commands import X4Param
 from app.sensors.x4m03_driver import X4M03Radar
-from app.sensors.x4m03_settings import X4M03Settings, radar_settings
+from app.settings import RadarSettings, validate_section
 from sim.radar import RadarEmulator, sea_emulator
 from sim.radar_firmware import FirmwareConfig
 from sim.radar_track import hover
@@ -36,7 +36,7 @@ async def emulator(tmp_path) -> AsyncIterator[RadarEmulator]:
 
 
 def radar_on(emu: RadarEmulator, **kw) -> X4M03Radar:
-    return X4M03Radar(X4M03Settings(port=emu.path, reconnect_interval_s=0.1, **kw))
+    return X4M03Radar(RadarSettings(port=emu.path, reconnect_interval_s=0.1, **kw))
 
 
 async def eventually(check: Callable[[], bool], timeout_s: float = WAIT_S) -> None:
@@ -250,7 +250,7 @@ async def test_unplug_and_replug_recovers_the_stream_and_cancel_stops_it(emulato
 
 
 async def test_a_missing_port_is_a_clear_disconnected_error(tmp_path):
-    radar = X4M03Radar(X4M03Settings(port=str(tmp_path / "nothing-here")))
+    radar = X4M03Radar(RadarSettings(port=str(tmp_path / "nothing-here")))
     with pytest.raises(RadarDisconnected, match="nothing-here: cannot open"):
         await radar.connect()
 
@@ -261,5 +261,5 @@ async def test_a_missing_port_is_a_clear_disconnected_error(tmp_path):
 )
 def test_invalid_settings_are_refused_naming_the_field(data, path):
     with pytest.raises(ConfigError) as info:
-        radar_settings(data)
+        validate_section(RadarSettings, data, "radar")
     assert info.value.path == path
