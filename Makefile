@@ -28,6 +28,11 @@ test: $(STAMP)   ## the whole test suite (unit, simulator, end-to-end through th
 eval: $(STAMP)   ## target filters against ground truth, sea states 0–4
 	$(BIN)/python -m sim.evaluate filters
 
+bench: $(STAMP)  ## the benchmarks: perception, triangulation, radar (figures printed; --json for machines)
+	$(BIN)/python -m app.bench perception
+	$(BIN)/python -m app.bench triangulation
+	$(BIN)/python -m app.bench radar
+
 lint: $(STAMP)
 	$(BIN)/ruff check app sim tests
 	$(BIN)/mypy

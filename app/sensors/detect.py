@@ -116,6 +116,22 @@ class Track:
         )
 
 
+class TrackingDetector:
+    """What both detectors share: their own track and which pass produced the last result."""
+
+    def __init__(self) -> None:
+        self._track = Track()
+        self._last_pass: Pass = "none"
+
+    @property
+    def last_pass(self) -> Pass:
+        return self._last_pass
+
+    def reset(self) -> None:
+        self._track.reset()
+        self._last_pass = "none"
+
+
 def make_detector(detector: DetectorSettings, camera: CameraSettings) -> Detector:
     """The detector ``detector.kind`` names."""
     if detector.kind == "buoy":

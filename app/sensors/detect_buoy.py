@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from app.messages import PixelDetection
-from app.sensors.detect import MIN_WINDOW_PX, DetectionHint, Image, Pass, Track, Window
+from app.sensors.detect import MIN_WINDOW_PX, DetectionHint, Image, TrackingDetector, Window
 from app.settings import CameraSettings, DetectorSettings
 
 BINARIZE_LEVEL = 0.5  # of the range above the frame's median (thesis: 0.3 of full scale, on a dark sea)
@@ -40,22 +40,13 @@ def _disc(radius_px: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius_px + 1, 2 * radius_px + 1))
 
 
-class BuoyDetector:
+class BuoyDetector(TrackingDetector):
     """The buoy detector behind :class:`app.sensors.detect.Detector`."""
 
     def __init__(self, settings: DetectorSettings, camera: CameraSettings | None = None) -> None:
+        super().__init__()
         self.settings = settings
         self.camera = camera or CameraSettings()
-        self._track = Track()
-        self._last_pass: Pass = "none"
-
-    @property
-    def last_pass(self) -> Pass:
-        return self._last_pass
-
-    def reset(self) -> None:
-        self._track.reset()
-        self._last_pass = "none"
 
     def expected_radius_px(self, height_m: float) -> float:
         """r = f · (D/2) / h: the buoy's radius on the image from ``height_m`` above it."""

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from app.messages import PixelDetection
-from app.sensors.detect import MIN_WINDOW_PX, DetectionHint, Image, Pass, Track, Window
+from app.sensors.detect import MIN_WINDOW_PX, DetectionHint, Image, TrackingDetector, Window
 from app.settings import CameraSettings, DetectorSettings
 
 SEARCH_SCALE = 0.5  # the first full-frame pass runs at this scale
@@ -65,10 +65,11 @@ def _parameters(min_perimeter_rate: float, max_perimeter_rate: float) -> cv2.aru
     return p
 
 
-class MarkerDetector:
+class MarkerDetector(TrackingDetector):
     """The marker detector behind :class:`app.sensors.detect.Detector`."""
 
     def __init__(self, settings: DetectorSettings, camera: CameraSettings | None = None) -> None:
+        super().__init__()
         self.settings = settings
         self.width_px = camera.width_px if camera else 1280
         self.height_px = camera.height_px if camera else 960
@@ -88,16 +89,6 @@ class MarkerDetector:
             self._dictionary, _parameters(4 * SEARCH_FULL_MIN_PX / long_side, 4 * SEARCH_FULL_MAX_PX / long_side)
         )
         self._window = cv2.aruco.ArucoDetector(self._dictionary, _parameters(0.03, 4.0))
-        self._track = Track()
-        self._last_pass: Pass = "none"
-
-    @property
-    def last_pass(self) -> Pass:
-        return self._last_pass
-
-    def reset(self) -> None:
-        self._track.reset()
-        self._last_pass = "none"
 
     def detect(
         self, image: Image, t_s: float, hint: DetectionHint | None = None, height_m: float | None = None
