@@ -36,6 +36,13 @@ class TelemetrySettings(_Model):
     attitude_rate_hz: float = Field(50.0, ge=5.0, le=100.0, description="requested ATTITUDE rate, Hz")
     global_position_rate_hz: float = Field(5.0, ge=1.0, le=50.0, description="requested GLOBAL_POSITION_INT rate, Hz")
     status_rate_hz: float = Field(2.0, ge=0.5, le=10.0, description="requested landed-state / home rate, Hz")
+    mode_rate_hz: float = Field(
+        20.0,
+        ge=0.0,
+        le=50.0,
+        description="requested CURRENT_MODE rate (PX4 ≥ 1.15): a pilot's mode switch is seen within 1/rate "
+        "instead of up to 1 s (HEARTBEAT); 0 = heartbeat only, Hz",
+    )
     position_stale_s: float = Field(
         0.5, ge=0.05, le=5.0, description="position older than this is stale: the setpoint loop holds, s"
     )

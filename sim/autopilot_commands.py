@@ -17,7 +17,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from sim.autopilot_modes import GeoPoint, MavResult, Mode, Profile, mode_from_set_mode_params
 from sim.autopilot_params import Param
-from sim.autopilot_telemetry import MAX_RATE_HZ, STREAMABLE, Message, TelemetryEncoder
+from sim.autopilot_telemetry import MAX_RATE_HZ, Message, TelemetryEncoder
 from sim.flight_stack import FlightStack
 
 MSG = mavlink
@@ -188,8 +188,8 @@ class CommandHandler:
 
     def _message_interval(self, msg_id: int, interval_us: float) -> MavResult:
         if msg_id == MSG.MAVLINK_MSG_ID_HEARTBEAT:
-            return MavResult.ACCEPTED  # always 1 Hz, as on PX4
-        if msg_id not in STREAMABLE:
+            return MavResult.FAILED  # always 1 Hz: PX4's set_message_interval refuses HEARTBEAT
+        if not self.encoder.streamable(msg_id):
             return MavResult.DENIED
         if interval_us < 0:
             self._set_interval(msg_id, None)

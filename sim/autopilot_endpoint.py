@@ -78,7 +78,7 @@ class SimAutopilot:
         }
         self._next_due_s: dict[int, float] = dict.fromkeys(STREAMABLE, 0.0)
         self._next_heartbeat_s = 0.0
-        self._heartbeat_now = False
+        self._pilot_heartbeat_now = False
         self._next_truth_log_s = 0.0
         self._truth: Truth | None = None
         self._jobs: queue.SimpleQueue[Callable[[FlightStack], None]] = queue.SimpleQueue()
@@ -154,14 +154,16 @@ class SimAutopilot:
             self._jobs.get_nowait()(self.stack)
         self.stack.step(t_s)
         self._truth = self.stack.truth()
-        if t_s >= self._next_heartbeat_s or self._heartbeat_now:
-            self._send_heartbeats()
+        if t_s >= self._next_heartbeat_s:
+            self._send_heartbeats()  # 1 Hz and never sooner, like PX4's const-rate HEARTBEAT stream
+        if self._pilot_heartbeat_now:
+            self._send_pilot_heartbeat()
         for msg_id, interval_s in self._interval_s.items():
             if interval_s is None or t_s < self._next_due_s[msg_id]:
                 continue
             due = self._next_due_s[msg_id] + interval_s
             self._next_due_s[msg_id] = due if due > t_s else t_s + interval_s
-            msg = self.encoder.message(msg_id)
+            msg = self.encoder.stream(msg_id, t_s)
             if msg is not None:
                 self._main.send(msg)
         if self._state_log is not None and t_s >= self._next_truth_log_s:
@@ -182,12 +184,15 @@ class SimAutopilot:
             )
 
     def _send_heartbeats(self) -> None:
-        self._heartbeat_now = False
         self._next_heartbeat_s = self._now_s() + HEARTBEAT_PERIOD_S
-        hb = self.encoder.heartbeat()
-        self._main.send(hb)
+        self._main.send(self.encoder.heartbeat())
+        self._send_pilot_heartbeat()
+
+    def _send_pilot_heartbeat(self) -> None:
+        """The pilot tool stands in for the RC link: it hears of a mode or arming change at once."""
+        self._pilot_heartbeat_now = False
         if self._pilot is not None:
-            self._pilot.send(hb)
+            self._pilot.send(self.encoder.heartbeat())
 
     def _set_interval(self, msg_id: int, interval_s: float | None) -> None:
         """``None`` stops the stream, 0 = the default rate (PX4 SITL's; 1 Hz for one PX4 does not stream)."""
@@ -204,7 +209,7 @@ class SimAutopilot:
 
     def _on_event(self, ev: StackEvent) -> None:
         if ev.kind in ("mode", "armed"):
-            self._heartbeat_now = True
+            self._pilot_heartbeat_now = True
         if ev.kind == "mode" and ev.mode is not None:
             self._log("mode", ev.t_s, mode=ev.mode.flight_mode.value, autopilot_mode=ev.mode.label, reason=ev.reason)
         elif ev.kind == "armed":
@@ -240,8 +245,8 @@ class SimAutopilot:
                 except Exception:
                     log.exception("failed to handle %s", msg.get_type())
             self._truth = self.stack.truth()  # commands may have changed it since the tick
-            if self._heartbeat_now:
-                self._send_heartbeats()
+            if self._pilot_heartbeat_now:
+                self._send_pilot_heartbeat()
 
     def _handle(self, link: Link, addr: Address, msg: Message) -> None:
         kind = msg.get_type()

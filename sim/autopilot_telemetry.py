@@ -11,6 +11,7 @@ import math
 import time
 
 from pymavlink.dialects.v20 import common as mavlink
+from pymavlink.dialects.v20 import development as mavlink_dev
 from pymavlink.dialects.v20.common import MAVLink_message as Message
 
 from app.messages import LandedState
@@ -44,8 +45,22 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     MSG.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
     MSG.MAVLINK_MSG_ID_VFR_HUD: 4.0,
     MSG.MAVLINK_MSG_ID_SYSTEM_TIME: 0.0,  # known (can be requested) but off by default
+    mavlink_dev.MAVLINK_MSG_ID_CURRENT_MODE: 0.0,  # PX4 ≥ 1.15; off here until asked for
 }
 STREAMABLE = frozenset(DEFAULT_RATES_HZ)
+PX4_ONLY = frozenset({mavlink_dev.MAVLINK_MSG_ID_CURRENT_MODE})  # ArduPilot refuses these
+# PX4 sends CURRENT_MODE (at most at its stream rate) when vehicle_status was published since the last one:
+# on every mode change, and at least every 0.5 s (commander's slowest publication).
+CURRENT_MODE_REFRESH_S = 0.5
+# MAV_STANDARD_MODE of PX4's modes (mode_util::getStandardModeFromNavState); others are 0 (non-standard).
+_STANDARD_MODES = {
+    Mode.POSCTL: 1,  # POSITION_HOLD
+    Mode.ALTCTL: 4,  # ALTITUDE_HOLD
+    Mode.AUTO_RTL: 5,  # SAFE_RECOVERY
+    Mode.AUTO_MISSION: 6,
+    Mode.AUTO_LAND: 7,
+    Mode.AUTO_TAKEOFF: 8,
+}
 MAX_RATE_HZ = 50.0
 
 _LANDED = {
@@ -97,6 +112,7 @@ class TelemetryEncoder:
         self.stack = stack
         self._mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
         self._ap = stack.profile is Profile.ARDUPILOT
+        self._current_mode_sent: tuple[int, float] | None = None  # (custom_mode, t_s) of the last CURRENT_MODE
 
     def _ms(self) -> int:
         return int(self.stack.time_since_boot_s * 1000.0) & 0xFFFFFFFF
@@ -110,6 +126,27 @@ class TelemetryEncoder:
         status = MSG.MAV_STATE_ACTIVE if st.armed else MSG.MAV_STATE_STANDBY
         return self._mav.heartbeat_encode(
             MSG.MAV_TYPE_QUADROTOR, autopilot, _base_mode(st.mode, st.armed), st.mode.custom_mode, status, 3
+        )
+
+    def streamable(self, msg_id: int) -> bool:
+        return msg_id in STREAMABLE and not (self._ap and msg_id in PX4_ONLY)
+
+    def stream(self, msg_id: int, t_s: float) -> Message | None:
+        """The message a stream sends at ``t_s``; None when there is nothing to send (CURRENT_MODE unchanged)."""
+        if msg_id == mavlink_dev.MAVLINK_MSG_ID_CURRENT_MODE:
+            custom, last = self.stack.mode.custom_mode, self._current_mode_sent
+            if last is not None and last[0] == custom and t_s - last[1] < CURRENT_MODE_REFRESH_S:
+                return None
+            self._current_mode_sent = (custom, t_s)
+        return self.message(msg_id)
+
+    def current_mode(self) -> Message | None:
+        """CURRENT_MODE (PX4 only): the mode as in HEARTBEAT, and the standard mode it maps to."""
+        if self._ap:
+            return None
+        mode = self.stack.mode
+        return mavlink_dev.MAVLink_current_mode_message(
+            _STANDARD_MODES.get(mode, 0), mode.custom_mode, mode.custom_mode
         )
 
     def message(self, msg_id: int) -> Message | None:
@@ -127,6 +164,7 @@ class TelemetryEncoder:
             MSG.MAVLINK_MSG_ID_SYSTEM_TIME: self.system_time,
             MSG.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self.autopilot_version,
             MSG.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
+            mavlink_dev.MAVLINK_MSG_ID_CURRENT_MODE: self.current_mode,
         }.get(msg_id)
         return build() if build is not None else None
 

@@ -1,9 +1,9 @@
 """The mission runner: ticks the table on the loop clock.
 
 Each tick builds one immutable ``GuardContext``, then in order:
-1. takeover — in a flying state while armed, a pilot mode (POSCTL, ALTCTL, …), or any mode other than the
-   ones our last command expects once that command had shown in telemetry, means someone else has the
-   vehicle: enter MANUAL, stop guiding at once, command nothing (PX4: standby setpoints only);
+1. takeover — in a flying state while armed, a pilot mode (POSCTL, ALTCTL, …), or (in the air) any mode other
+   than the ones our last command expects once that command had shown in telemetry, means someone else has
+   the vehicle: enter MANUAL, stop guiding at once, command nothing (PX4: standby setpoints only);
 2. handback — in MANUAL, OFFBOARD selected by the pilot (ArduPilot: GUIDED) resumes the table's choice;
 3. the state's transitions in order, first true guard wins;
 4. the state's timeout.
@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from app.clock import Clock, sleep_until
 from app.errors import VehicleError
 from app.eventlog import EventLog
-from app.messages import PILOT_MODES, Autopilot, FlightMode
+from app.messages import PILOT_MODES, Autopilot, FlightMode, LandedState
 from app.missions.actions import ACTIONS
 from app.missions.circle import TrackingErrors
 from app.missions.guards import GUARDS, GuardContext
@@ -130,7 +130,11 @@ class MissionRunner:
             fresh = tel.flight_mode is not None and tel.flight_mode.t_s >= w.since_s
             if fresh and w.expected is not None and not w.confirmed and mode in w.expected:
                 w.confirmed = True
-            if fresh and (mode in PILOT_MODES or (w.confirmed and w.expected is not None and mode not in w.expected)):
+            # On the ground the autopilot ends a landing itself (PX4: HOLD as it disarms, the mode seen through
+            # CURRENT_MODE before the 1 Hz heartbeat says disarmed): only a pilot mode is a takeover there.
+            on_ground = tel.landed_state is not None and tel.landed_state.value == LandedState.ON_GROUND
+            unexpected = w.confirmed and w.expected is not None and mode not in w.expected and not on_ground
+            if fresh and (mode in PILOT_MODES or unexpected):
                 await self._take_over(mode)
                 return
             if w.expected is not None and not w.confirmed and now_s - w.since_s > self._confirm_timeout_s:

@@ -7,12 +7,17 @@ autopilot (reference notes §2 and §5):
 - readiness means a position stream, home, flight mode and armed state — never MAVSDK's health flags,
   which stay false on ArduPilot;
 - home comes from the stream or, when that stays silent (ArduPilot), from the one-shot getter;
-- offboard is GUIDED on ArduPilot and HOLD is BRAKE; both read through MAVSDK's own mode mapping.
+- offboard is GUIDED on ArduPilot and HOLD is BRAKE; both read through MAVSDK's own mode mapping;
+- the flight mode comes with HEARTBEAT, 1 Hz on both autopilots and not faster on request; on PX4 (≥ 1.15)
+  CURRENT_MODE is requested at ``telemetry.mode_rate_hz`` and read through MAVLink-direct, so that a
+  pilot's switch is seen within a few tens of milliseconds. ArduPilot has no such message: there a switch is
+  seen with the next heartbeat (≤ 1 s).
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
 import math
 import sys
 import threading
@@ -25,9 +30,11 @@ from typing import Any
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk, MavsdkError
 from mavsdk.asyncio.autopilot import Autopilot as MavAutopilot
 from mavsdk.asyncio.plugins.action import ActionAsync, ActionError
+from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, OffboardError, VelocityNedYaw
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.logging import LogLevel, log_subscribe
+from mavsdk.plugins.mavlink_direct.mavlink_direct import MavlinkMessage
 
 from app.clock import Clock
 from app.errors import VehicleConnectionError, VehicleError
@@ -43,12 +50,16 @@ from app.messages import (
     TelemetrySnapshot,
     Vec3,
 )
+from app.offboard.px4_modes import MAV_CMD_SET_MESSAGE_INTERVAL, MSG_ID_CURRENT_MODE, px4_flight_mode
 from app.settings import ConnectionSettings, TelemetrySettings
 
 ARM_RETRY_PERIOD_S = 1.0
 # PX4 denies arming while pre-arm checks fail; ArduCopter answers MAV_RESULT_FAILED for the same.
 ARM_RETRY_RESULTS = frozenset({"COMMAND_DENIED", "FAILED", "BUSY"})
 HOME_CHANGE_M = 0.5  # a home estimate that moves less than this is not re-published
+# While CURRENT_MODE (≥ 2 Hz on PX4) is this fresh, heartbeat modes are ignored: a heartbeat built just before
+# a switch and handled just after its CURRENT_MODE must not read as the pilot handing back.
+CURRENT_MODE_FRESH_S = 1.0
 
 
 def route_mavsdk_log(path: Path | None) -> None:
@@ -100,6 +111,7 @@ class MavsdkVehicle:
         self._autopilot = Autopilot.UNKNOWN
         self._global_pair: tuple[Any, Vec3] | None = None
         self._home_global: Any = None
+        self._current_mode_t: float | None = None  # when the last CURRENT_MODE arrived
 
     # ---- construction -------------------------------------------------------------------------
 
@@ -151,6 +163,8 @@ class MavsdkVehicle:
             tg.create_task(self._consume_landed(), name="vehicle.landed_state")
             tg.create_task(self._consume_home(), name="vehicle.home")
             tg.create_task(self._consume_global(), name="vehicle.global_position")
+            if self._autopilot is Autopilot.PX4 and self._tel_settings.mode_rate_hz > 0.0:
+                tg.create_task(self._consume_current_mode(), name="vehicle.current_mode")
 
     async def _request_rates(self) -> None:
         t = self._tel_settings
@@ -194,11 +208,49 @@ class MavsdkVehicle:
 
     async def _consume_flight_mode(self) -> None:
         async for m in self._telemetry.subscribe_flight_mode():
-            mode = FlightMode[m.name] if m.name in FlightMode.__members__ else FlightMode.UNKNOWN
-            previous = self._snapshot.mode()
-            self._update(flight_mode=Stamped(self._clock.now_s(), mode))
-            if mode != previous:
-                self._events.write(self._clock.now_s(), "vehicle", event="flight_mode", mode=mode.value)
+            t = self._current_mode_t
+            if t is not None and self._clock.now_s() - t < CURRENT_MODE_FRESH_S:
+                continue
+            self._set_flight_mode(FlightMode[m.name] if m.name in FlightMode.__members__ else FlightMode.UNKNOWN)
+
+    async def _consume_current_mode(self) -> None:
+        """PX4's CURRENT_MODE: asked for at ``mode_rate_hz``; refused (PX4 < 1.15) → the heartbeat alone."""
+        direct = MavlinkDirectAsync(self._system)
+        rate_hz = self._tel_settings.mode_rate_hz
+        try:
+            sysid = await self._system.get_system_id()
+            fields: dict[str, float] = {"target_system": sysid, "target_component": 1, "confirmation": 0}
+            fields |= {"command": MAV_CMD_SET_MESSAGE_INTERVAL, "param1": MSG_ID_CURRENT_MODE, "param2": 1e6 / rate_hz}
+            fields |= dict.fromkeys(("param3", "param4", "param5", "param6", "param7"), 0)
+            command = MavlinkMessage("COMMAND_LONG", 0, 0, sysid, 1, json.dumps(fields))
+            ack = json.loads((await direct.send_command(command)).fields_json)
+            if ack.get("result") != 0:
+                raise MavsdkError(f"SET_MESSAGE_INTERVAL answered MAV_RESULT {ack.get('result')}")
+        except (MavsdkError, ValueError) as e:
+            self._events.write(
+                self._clock.now_s(),
+                "vehicle",
+                event="rate_refused",
+                stream="current_mode",
+                rate_hz=rate_hz,
+                error=str(e),
+            )
+            return
+        self._events.write(self._clock.now_s(), "vehicle", event="rate", stream="current_mode", rate_hz=rate_hz)
+        async for msg in direct.subscribe_message("CURRENT_MODE"):
+            try:
+                custom_mode = int(json.loads(msg.fields_json)["custom_mode"])
+            except (KeyError, TypeError, ValueError):
+                continue
+            self._current_mode_t = self._clock.now_s()
+            self._set_flight_mode(px4_flight_mode(custom_mode))
+
+    def _set_flight_mode(self, mode: FlightMode) -> None:
+        """A fresh flight-mode sample, from HEARTBEAT or CURRENT_MODE (whichever comes first)."""
+        previous = self._snapshot.mode()
+        self._update(flight_mode=Stamped(self._clock.now_s(), mode))
+        if mode != previous:
+            self._events.write(self._clock.now_s(), "vehicle", event="flight_mode", mode=mode.value)
 
     async def _consume_armed(self) -> None:
         async for armed in self._telemetry.subscribe_armed():

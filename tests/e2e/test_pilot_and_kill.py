@@ -61,6 +61,11 @@ def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tm
     latency_s = manual["t_s"] + wall_minus_mono() - switch["t_wall"]
     assert latency_s <= 0.5, f"MANUAL {latency_s:.3f} s after the switch"
     assert "pilot switched to POSCTL" in manual["reason"]
+    # Seen through CURRENT_MODE, not the 1 Hz heartbeat (which would take up to a second).
+    asked = [e for e in read_jsonl(events) if e.get("event") in ("rate", "rate_refused")]
+    assert {"stream": "current_mode", "event": "rate"}.items() <= next(
+        e for e in asked if e["stream"] == "current_mode"
+    ).items()
 
     # The app must never switch the mode back: the vehicle stays in POSCTL.
     time.sleep(5.0)

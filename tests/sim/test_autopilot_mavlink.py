@@ -9,6 +9,7 @@ from collections.abc import Callable, Iterator
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
+from pymavlink.dialects.v20 import development
 
 from sim import pilot
 from sim.autopilot import SimAutopilot, SimConfig
@@ -28,7 +29,7 @@ class Gcs:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", port))
         self.tx = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        self.rx = mavlink.MAVLink(None)
+        self.rx = development.MAVLink(None)  # common + CURRENT_MODE
         self.rx.robust_parsing = True
         self.peer: tuple[str, int] | None = None
 
@@ -106,7 +107,41 @@ def test_every_command_is_acked_to_its_sender(link: tuple[SimAutopilot, Gcs]) ->
     gcs.send(gcs.tx.command_int_encode(1, 1, 0, MSG.MAV_CMD_DO_SET_MODE, 0, 0, 1, 3, 0, 0, 0, 0, 0))
     ack = gcs.wait("COMMAND_ACK", where=lambda m: m.command == MSG.MAV_CMD_DO_SET_MODE)
     assert ack.result == MSG.MAV_RESULT_ACCEPTED  # POSCTL through COMMAND_INT
-    assert gcs.wait("HEARTBEAT", 0.5).custom_mode == Mode.POSCTL.custom_mode  # immediate heartbeat
+    assert gcs.wait("HEARTBEAT", 1.2).custom_mode == Mode.POSCTL.custom_mode  # with the next 1 Hz heartbeat
+
+
+def test_heartbeat_is_1_hz_whatever_happens_and_current_mode_tells_a_switch_at_once(
+    link: tuple[SimAutopilot, Gcs],
+) -> None:
+    sim, gcs = link
+    gcs.wait("SYS_STATUS", where=lambda m: m.onboard_control_sensors_health & MSG.MAV_SYS_STATUS_PREARM_CHECK)
+    # PX4 refuses a faster HEARTBEAT; CURRENT_MODE (PX4 ≥ 1.15) is off until asked for, then at most 20 Hz and
+    # only when something changed or 0.5 s passed (PX4 sends it when vehicle_status was published).
+    assert gcs.command(MSG.MAV_CMD_SET_MESSAGE_INTERVAL, MSG.MAVLINK_MSG_ID_HEARTBEAT, 50_000).result == (
+        MSG.MAV_RESULT_FAILED
+    )
+    assert gcs.count("CURRENT_MODE", 0.6) == 0
+    ack = gcs.command(MSG.MAV_CMD_SET_MESSAGE_INTERVAL, development.MAVLINK_MSG_ID_CURRENT_MODE, 50_000)
+    assert ack.result == MSG.MAV_RESULT_ACCEPTED
+    counts: dict[str, int] = {}
+    for m in gcs.messages(2.05):
+        counts[m.get_type()] = counts.get(m.get_type(), 0) + 1
+    assert 2 <= counts.get("HEARTBEAT", 0) <= 3 and 4 <= counts.get("CURRENT_MODE", 0) <= 6
+    assert sim.pilot_address is not None
+    assert pilot.set_mode("POSCTL", port=sim.pilot_address[1]).ok
+    switched = time.monotonic()
+    current = gcs.wait("CURRENT_MODE", 0.5, lambda m: m.custom_mode == Mode.POSCTL.custom_mode)
+    assert time.monotonic() - switched < 0.15
+    assert (current.standard_mode, current.intended_custom_mode) == (1, Mode.POSCTL.custom_mode)  # POSITION_HOLD
+    beats = [m for m in gcs.messages(2.5) if m.get_type() == "HEARTBEAT"]
+    assert 2 <= len(beats) <= 3  # the switch did not bring one forward
+
+
+@pytest.mark.parametrize("link", [{"profile": Profile.ARDUPILOT}], indirect=True)
+def test_ardupilot_has_no_current_mode(link: tuple[SimAutopilot, Gcs]) -> None:
+    _, gcs = link
+    ack = gcs.command(MSG.MAV_CMD_SET_MESSAGE_INTERVAL, development.MAVLINK_MSG_ID_CURRENT_MODE, 50_000)
+    assert ack.result == MSG.MAV_RESULT_DENIED
 
 
 def test_set_message_interval_changes_and_disables_a_stream(link: tuple[SimAutopilot, Gcs]) -> None:

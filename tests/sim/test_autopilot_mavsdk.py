@@ -68,7 +68,7 @@ async def test_px4_flight_offboard_pilot_takeover_stop_and_land() -> None:
         assert pv.position.north_m - north0_m > 2.0
         assert await c.telemetry.flight_mode() == FlightMode.OFFBOARD
 
-        # A pilot switches to POSCTL: MAVSDK's flight_mode stream shows it at once (immediate heartbeat).
+        # A pilot switches to POSCTL: MAVSDK's flight_mode stream shows it with the next 1 Hz heartbeat.
         seen = asyncio.create_task(first(c.telemetry.subscribe_flight_mode(), lambda m: m == FlightMode.POSCTL, 5.0))
         await asyncio.sleep(0.3)  # let the subscription register
         assert c.sim.pilot_address is not None
@@ -76,7 +76,7 @@ async def test_px4_flight_offboard_pilot_takeover_stop_and_land() -> None:
         assert result.ok, result.message
         switched_s = asyncio.get_running_loop().time()
         await seen
-        assert asyncio.get_running_loop().time() - switched_s < 0.5
+        assert asyncio.get_running_loop().time() - switched_s < 1.2
 
         await c.offboard.stop()
         await mode_is(c, FlightMode.HOLD)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from dataclasses import replace
 
 import pytest
 
@@ -73,3 +74,26 @@ async def test_pilot_takeover_stops_guidance_and_handback_resumes_tracking():
     flight = await task
     assert flight.result.outcome == "completed"
     assert flight.result.states_visited == ["PREFLIGHT", "TAKEOFF", "TRACK", "MANUAL", "TRACK", "LAND", "DONE"]
+
+
+class HeartbeatArmedVehicle(InProcessVehicle):
+    """Armed state sampled at 1 Hz (HEARTBEAT), the flight mode at once (PX4's CURRENT_MODE)."""
+
+    def __init__(self, **kw):
+        super().__init__(**kw)
+        self._armed = None
+
+    def telemetry(self):
+        tel = super().telemetry()
+        if self._armed is None or tel.armed.t_s - self._armed.t_s >= 1.0:
+            self._armed = tel.armed
+        return replace(tel, armed=self._armed)
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_hold_on_disarm_after_landing_seen_before_disarmed_is_not_a_takeover():
+    """PX4 switches to HOLD as it auto-disarms after a landing; the mode can arrive up to a second before the
+    armed flag does. On the ground only a pilot mode means someone took over."""
+    flight = await fly(HeartbeatArmedVehicle(seed=1))
+    assert flight.result.outcome == "completed", flight.result
+    assert flight.result.states_visited == ["PREFLIGHT", "TAKEOFF", "TRACK", "LAND", "DONE"]
