@@ -14,6 +14,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from pymavlink.dialects.v20 import development as mavlink_dev
 from pymavlink.dialects.v20.common import MAVLink_message as Message
 
+from app.estimators.rotations import quat_from_euler_zyx
 from app.messages import LandedState
 from sim.autopilot_modes import Mode, Profile
 from sim.autopilot_params import Param
@@ -86,19 +87,6 @@ def _base_mode(mode: Mode, armed: bool) -> int:
     if mode is Mode.POSCTL:
         return base | manual | stab | guided
     return base | auto | stab | guided
-
-
-def _quaternion(roll_rad: float, pitch_rad: float, yaw_rad: float) -> tuple[float, float, float, float]:
-    """ZYX Euler → quaternion (w, x, y, z)."""
-    cr, sr = math.cos(roll_rad / 2), math.sin(roll_rad / 2)
-    cp, sp = math.cos(pitch_rad / 2), math.sin(pitch_rad / 2)
-    cy, sy = math.cos(yaw_rad / 2), math.sin(yaw_rad / 2)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
 
 
 def _cdeg(angle_rad: float) -> int:
@@ -225,7 +213,7 @@ class TelemetryEncoder:
 
     def attitude_quaternion(self) -> Message:
         s = self.stack.dyn.state
-        q, r = _quaternion(s.roll_rad, s.pitch_rad, s.yaw_rad), s.rates_radps
+        q, r = quat_from_euler_zyx(s.roll_rad, s.pitch_rad, s.yaw_rad), s.rates_radps
         return self._mav.attitude_quaternion_encode(self._ms(), *q, r[0], r[1], r[2])
 
     def gps_raw_int(self) -> Message:
