@@ -91,6 +91,7 @@ class Flight:
     autopilot: str
     setpoints_sent: int
     tracking: dict[str, Any]
+    timing: dict[str, Any]  # telemetry latency and setpoint spacing: what a busy computer did to the run
 
 
 async def safe_exit(vehicle: Vehicle, setpoints: SetpointLoop, clock: Clock, events: EventLog) -> None:
@@ -158,7 +159,10 @@ async def fly_mission(
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.remove_signal_handler(sig)
-    return Flight(result, clock.now_s() - t_start_s, vehicle.autopilot.value, setpoints.sent, runner.tracking.summary())
+    timing = vehicle.link_stats() | setpoints.interval_summary()
+    return Flight(
+        result, clock.now_s() - t_start_s, vehicle.autopilot.value, setpoints.sent, runner.tracking.summary(), timing
+    )
 
 
 async def connect_and_fly(url: str, table: MissionTable, settings: Settings, events: EventLog, run_dir: Path) -> Flight:
@@ -215,6 +219,7 @@ def main(argv: list[str] | None = None) -> int:
             autopilot=flight.autopilot,
             setpoints_sent=flight.setpoints_sent,
             **flight.tracking,
+            timing={k: None if v is None else round(v, 4) for k, v in flight.timing.items()},
         )
     except BaseException as exc:
         leaf = first_leaf(exc)

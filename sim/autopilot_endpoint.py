@@ -100,6 +100,11 @@ class SimAutopilot:
     def pilot_address(self) -> Address | None:
         return None if self._pilot is None else self._pilot.local_address
 
+    @property
+    def boot_monotonic_s(self) -> float:
+        """``time.monotonic()`` at boot: time_boot_ms counts from here, and so does the state log's ``t_s``."""
+        return self._t0
+
     def truth(self) -> Truth | None:
         """The latest truth snapshot (safe to call from any thread)."""
         return self._truth

@@ -111,6 +111,9 @@ class InProcessVehicle:
             home_ned_m=st.home_ned_m,
         )
 
+    def link_stats(self) -> dict[str, float | None]:
+        return {}  # no link: samples are read straight from the physics
+
     async def arm(self) -> None:
         self._check("arm", self.stack.arm(self._advance()))
         await asyncio.sleep(0)

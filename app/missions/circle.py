@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, field
 
 from app.messages import PositionVelocityNed, TargetState, Vec3
+from app.stats import percentile
 
 
 @dataclass
@@ -24,17 +25,12 @@ class TrackingErrors:
     err_horizontal_m: list[float] = field(default_factory=list)
 
     def summary(self) -> dict[str, float | int | None]:
-        def pct(xs: list[float], q: float) -> float | None:
-            if not xs:
-                return None
-            s = sorted(xs)
-            return s[min(len(s) - 1, round(q * (len(s) - 1)))]
-
+        err, err_h = sorted(self.err_m), sorted(self.err_horizontal_m)
         return {
-            "tracking_error_p50_m": pct(self.err_m, 0.50),
-            "tracking_error_p95_m": pct(self.err_m, 0.95),
-            "tracking_error_max_m": max(self.err_m) if self.err_m else None,
-            "tracking_error_horizontal_p95_m": pct(self.err_horizontal_m, 0.95),
+            "tracking_error_p50_m": percentile(err, 0.50),
+            "tracking_error_p95_m": percentile(err, 0.95),
+            "tracking_error_max_m": err[-1] if err else None,
+            "tracking_error_horizontal_p95_m": percentile(err_h, 0.95),
             "tracking_samples": len(self.err_m),
         }
 

@@ -11,7 +11,10 @@ autopilot (reference notes §2 and §5):
 - the flight mode comes with HEARTBEAT, 1 Hz on both autopilots and not faster on request; on PX4 (≥ 1.15)
   CURRENT_MODE is requested at ``telemetry.mode_rate_hz`` and read through MAVLink-direct, so that a
   pilot's switch is seen within a few tens of milliseconds. ArduPilot has no such message: there a switch is
-  seen with the next heartbeat (≤ 1 s).
+  seen with the next heartbeat (≤ 1 s);
+- position (LOCAL_POSITION_NED, read through MAVLink-direct) and attitude are stamped with the time the
+  autopilot took them, not when they arrived (``app.offboard.timesync``): a busy companion computer delays
+  them, and the guidance, the tracking figures and the state history want where the vehicle *was* then.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ from app.messages import (
     Vec3,
 )
 from app.offboard.px4_modes import MAV_CMD_SET_MESSAGE_INTERVAL, MSG_ID_CURRENT_MODE, px4_flight_mode
+from app.offboard.timesync import RemoteClock
 from app.settings import ConnectionSettings, TelemetrySettings
 
 ARM_RETRY_PERIOD_S = 1.0
@@ -60,6 +64,8 @@ HOME_CHANGE_M = 0.5  # a home estimate that moves less than this is not re-publi
 # While CURRENT_MODE (≥ 2 Hz on PX4) is this fresh, heartbeat modes are ignored: a heartbeat built just before
 # a switch and handled just after its CURRENT_MODE must not read as the pilot handing back.
 CURRENT_MODE_FRESH_S = 1.0
+SampleListener = Callable[[PositionVelocityNed | AttitudeEuler, float], None]
+AUTOPILOT_COMPONENT_ID = 1  # MAV_COMP_ID_AUTOPILOT1: PX4 and ArduPilot
 
 
 def route_mavsdk_log(path: Path | None) -> None:
@@ -112,6 +118,11 @@ class MavsdkVehicle:
         self._global_pair: tuple[Any, Vec3] | None = None
         self._home_global: Any = None
         self._current_mode_t: float | None = None  # when the last CURRENT_MODE arrived
+        self._direct = MavlinkDirectAsync(system)
+        # Samples are stamped with the autopilot's own time_boot_ms, mapped onto the loop clock.
+        self._position_clock = RemoteClock()
+        self._attitude_clock = RemoteClock()
+        self._sample_listeners: list[SampleListener] = []
 
     # ---- construction -------------------------------------------------------------------------
 
@@ -188,23 +199,48 @@ class MavsdkVehicle:
         await asyncio.gather(*(one(*r) for r in requests))
 
     async def _consume_position(self) -> None:
-        async for pv in self._telemetry.subscribe_position_velocity_ned():
-            p, v = pv.position, pv.velocity
-            if not _finite(p.north_m, p.east_m, p.down_m, v.north_m_s, v.east_m_s, v.down_m_s):
+        """LOCAL_POSITION_NED through MAVLink-direct: MAVSDK's PositionVelocityNed drops ``time_boot_ms``."""
+        async for msg in self._direct.subscribe_message("LOCAL_POSITION_NED"):
+            received_s = self._clock.now_s()
+            if msg.component_id != AUTOPILOT_COMPONENT_ID:
                 continue
-            self._update(
-                pos_vel=PositionVelocityNed(
-                    self._clock.now_s(), (p.north_m, p.east_m, p.down_m), (v.north_m_s, v.east_m_s, v.down_m_s)
-                )
-            )
+            try:
+                f = json.loads(msg.fields_json)
+                p = (float(f["x"]), float(f["y"]), float(f["z"]))
+                v = (float(f["vx"]), float(f["vy"]), float(f["vz"]))
+                boot_ms = int(f["time_boot_ms"])
+            except (KeyError, TypeError, ValueError):
+                continue
+            if not _finite(*p, *v):
+                continue
+            t_s = self._position_clock.stamp(boot_ms / 1e3, received_s) if boot_ms > 0 else received_s
+            self._publish(PositionVelocityNed(t_s, p, v), received_s)
 
     async def _consume_attitude(self) -> None:
         async for a in self._telemetry.subscribe_attitude_euler():
-            self._update(
-                attitude=AttitudeEuler(
-                    self._clock.now_s(), math.radians(a.roll_deg), math.radians(a.pitch_deg), math.radians(a.yaw_deg)
-                )
-            )
+            received_s = self._clock.now_s()
+            t_s = self._attitude_clock.stamp(a.timestamp_us / 1e6, received_s) if a.timestamp_us > 0 else received_s
+            rpy = (math.radians(a.roll_deg), math.radians(a.pitch_deg), math.radians(a.yaw_deg))
+            self._publish(AttitudeEuler(t_s, *rpy), received_s)
+
+    def add_sample_listener(self, listener: SampleListener) -> None:
+        """Call ``listener(sample, received_s)`` for every position and attitude sample, in arrival order.
+
+        The snapshot keeps only the latest; a state history wants them all (several can arrive at once).
+        """
+        self._sample_listeners.append(listener)
+
+    def _publish(self, sample: PositionVelocityNed | AttitudeEuler, received_s: float) -> None:
+        if isinstance(sample, PositionVelocityNed):
+            self._update(pos_vel=sample)
+        else:
+            self._update(attitude=sample)
+        for listener in self._sample_listeners:
+            listener(sample, received_s)
+
+    def link_stats(self) -> dict[str, float | None]:
+        """How late position and attitude samples reached the app after the autopilot took them."""
+        return self._position_clock.latency_summary("position") | self._attitude_clock.latency_summary("attitude")
 
     async def _consume_flight_mode(self) -> None:
         async for m in self._telemetry.subscribe_flight_mode():
@@ -215,7 +251,7 @@ class MavsdkVehicle:
 
     async def _consume_current_mode(self) -> None:
         """PX4's CURRENT_MODE: asked for at ``mode_rate_hz``; refused (PX4 < 1.15) → the heartbeat alone."""
-        direct = MavlinkDirectAsync(self._system)
+        direct = self._direct
         rate_hz = self._tel_settings.mode_rate_hz
         try:
             sysid = await self._system.get_system_id()

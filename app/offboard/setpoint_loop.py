@@ -14,6 +14,7 @@ Every decision is written to the event log.
 from __future__ import annotations
 
 import math
+from collections import deque
 from enum import StrEnum
 from typing import Protocol
 
@@ -24,6 +25,7 @@ from app.messages import PositionVelocityNed, TargetState, Vec3, norm, sub
 from app.offboard.envelope import EnvelopeLimits, apply_envelope
 from app.offboard.guidance import ConstantBearingParams, constant_bearing_velocity
 from app.offboard.vehicle import Vehicle
+from app.stats import percentile
 
 
 class LoopMode(StrEnum):
@@ -88,6 +90,8 @@ class SetpointLoop:
         self._next_standby_s = 0.0
         self.sent = 0
         self.send_errors = 0
+        self._last_send_s: float | None = None
+        self.send_intervals_s: deque[float] = deque(maxlen=100_000)  # between guidance setpoints
 
     # ---- control (called by the mission runner) -------------------------------------------------
 
@@ -105,6 +109,7 @@ class SetpointLoop:
 
     def standby(self) -> None:
         self.mode = LoopMode.STANDBY if self._standby_period_s > 0 else LoopMode.OFF
+        self._last_send_s = None
         self._source = None
         self._events.write(self._clock.now_s(), "setpoint", decision=self.mode.value.lower())
 
@@ -113,6 +118,7 @@ class SetpointLoop:
             self._events.write(self._clock.now_s(), "setpoint", decision="off")
         self.mode = LoopMode.OFF
         self._source = None
+        self._last_send_s = None
 
     @property
     def source(self) -> TargetSource | None:
@@ -177,12 +183,26 @@ class SetpointLoop:
         )
         return clamped.vel_ned_mps, self._yaw_rad
 
+    def interval_summary(self) -> dict[str, float | None]:
+        """Spacing of the guidance setpoints actually sent (the loop's period plus whatever delayed it)."""
+        xs = sorted(self.send_intervals_s)
+        return {
+            "setpoint_interval_p50_s": percentile(xs, 0.50),
+            "setpoint_interval_p95_s": percentile(xs, 0.95),
+            "setpoint_interval_max_s": xs[-1] if xs else None,
+        }
+
     async def _send(self, vel: Vec3, yaw_rad: float) -> None:
         if not all(math.isfinite(v) for v in vel):
             vel = (0.0, 0.0, 0.0)
         try:
             await self._vehicle.set_velocity_ned(vel, yaw_rad)
             self.sent += 1
+            now_s = self._clock.now_s()
+            if self.mode == LoopMode.GUIDE:
+                if self._last_send_s is not None:
+                    self.send_intervals_s.append(now_s - self._last_send_s)
+                self._last_send_s = now_s
         except VehicleError as e:
             self.send_errors += 1
             self._events.write(self._clock.now_s(), "setpoint", decision="send_failed", error=str(e))

@@ -2,8 +2,9 @@
 
 Implemented by the MAVSDK adapter (``app.offboard.mavsdk_vehicle``) for PX4 and ArduPilot, and by the
 in-process simulator (``sim.inproc``) for virtual-time tests. Commands raise ``VehicleError`` when the
-autopilot refuses them. Telemetry is a snapshot of the latest sample of every stream, each stamped with
-the loop time it was received.
+autopilot refuses them. Telemetry is a snapshot of the latest sample of every stream, each stamped on the
+loop clock: position and attitude with the time the autopilot took them (its ``time_boot_ms`` mapped onto
+the loop clock, ``app.offboard.timesync``), the rest with the time they were received.
 """
 
 from __future__ import annotations
@@ -32,6 +33,10 @@ class Vehicle(Protocol):
 
     def telemetry(self) -> TelemetrySnapshot:
         """The latest sample of every stream (never blocks)."""
+        ...
+
+    def link_stats(self) -> dict[str, float | None]:
+        """Figures about the telemetry link for the run summary (e.g. sample latency); may be empty."""
         ...
 
     async def arm(self) -> None: ...
