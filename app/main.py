@@ -219,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
             autopilot=flight.autopilot,
             setpoints_sent=flight.setpoints_sent,
             **flight.tracking,
-            timing={k: None if v is None else round(v, 4) for k, v in flight.timing.items()},
+            timing={k: round(v, 6) if isinstance(v, float) else v for k, v in flight.timing.items()},
         )
     except BaseException as exc:
         leaf = first_leaf(exc)

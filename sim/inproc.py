@@ -111,7 +111,7 @@ class InProcessVehicle:
             home_ned_m=st.home_ned_m,
         )
 
-    def link_stats(self) -> dict[str, float | None]:
+    def link_stats(self) -> dict[str, float | str | None]:
         return {}  # no link: samples are read straight from the physics
 
     async def arm(self) -> None:

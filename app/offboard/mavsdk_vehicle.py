@@ -15,6 +15,8 @@ autopilot (reference notes §2 and §5):
 - position (LOCAL_POSITION_NED, read through MAVLink-direct) and attitude are stamped with the time the
   autopilot took them, not when they arrived (``app.offboard.timesync``): a busy companion computer delays
   them, and the guidance, the tracking figures and the state history want where the vehicle *was* then.
+  An autopilot clock that does not run in real time (PX4 SITL in lockstep) is detected; its samples keep
+  their arrival time.
 """
 
 from __future__ import annotations
@@ -238,9 +240,9 @@ class MavsdkVehicle:
         for listener in self._sample_listeners:
             listener(sample, received_s)
 
-    def link_stats(self) -> dict[str, float | None]:
-        """How late position and attitude samples reached the app after the autopilot took them."""
-        return self._position_clock.latency_summary("position") | self._attitude_clock.latency_summary("attitude")
+    def link_stats(self) -> dict[str, float | str | None]:
+        """Which time position and attitude samples carry, and how late they reached the app."""
+        return self._position_clock.summary("position") | self._attitude_clock.summary("attitude")
 
     async def _consume_flight_mode(self) -> None:
         async for m in self._telemetry.subscribe_flight_mode():

@@ -4,7 +4,8 @@ Implemented by the MAVSDK adapter (``app.offboard.mavsdk_vehicle``) for PX4 and 
 in-process simulator (``sim.inproc``) for virtual-time tests. Commands raise ``VehicleError`` when the
 autopilot refuses them. Telemetry is a snapshot of the latest sample of every stream, each stamped on the
 loop clock: position and attitude with the time the autopilot took them (its ``time_boot_ms`` mapped onto
-the loop clock, ``app.offboard.timesync``), the rest with the time they were received.
+the loop clock, ``app.offboard.timesync``) once that clock is seen to run in real time, the rest with the
+time they were received.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ class Vehicle(Protocol):
         """The latest sample of every stream (never blocks)."""
         ...
 
-    def link_stats(self) -> dict[str, float | None]:
+    def link_stats(self) -> dict[str, float | str | None]:
         """Figures about the telemetry link for the run summary (e.g. sample latency); may be empty."""
         ...
 

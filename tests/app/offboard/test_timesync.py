@@ -11,12 +11,12 @@ import numpy as np
 from app.clock import LoopClock
 from app.eventlog import EventLog
 from app.messages import AttitudeEuler, PositionVelocityNed
-from app.offboard.timesync import RemoteClock
+from app.offboard.timesync import AUTOPILOT, RECEIPT, RemoteClock
 from app.settings import ConnectionSettings, TelemetrySettings
 from sim.autopilot import SimAutopilot, SimConfig
 from sim.state_log import read_state_log
 from sim.wind import WindConfig
-from tests.sim.conftest import free_udp_port
+from tests.sim.conftest import eventually, free_udp_port
 
 OFFSET_S = 1234.5  # loop clock minus autopilot clock
 
@@ -40,41 +40,65 @@ def delivered(rng: random.Random, n: int, period_s: float = 0.02) -> list[tuple[
 def test_stamps_are_the_sample_times_despite_receiver_stalls():
     clock = RemoteClock()
     errors, late = [], []
-    for k, (remote_s, received_s) in enumerate(delivered(random.Random(3), 5000)):
+    for remote_s, received_s in delivered(random.Random(3), 5000):
         t_s = clock.stamp(remote_s, received_s)
         assert t_s <= received_s
-        if k >= 50:  # after the first second
+        if remote_s < 7.4:
+            assert clock.mode == RECEIPT and t_s == received_s  # the clock's rate is not known yet
+        if remote_s >= 7.5:
+            assert clock.mode == AUTOPILOT
             errors.append(abs(t_s - (remote_s + OFFSET_S)))
             late.append(received_s - (remote_s + OFFSET_S))
     assert max(errors) < 0.002  # the window's fastest packet: ~0.3 ms transport
     assert max(late) > 0.08  # the stalls were there: receipt stamps would have been 80+ ms late
-    stats = clock.latency_summary("position")
+    stats = clock.summary("position")
+    assert stats["position_clock"] == "autopilot"
     assert stats["position_latency_max_s"] is not None and stats["position_latency_max_s"] > 0.08
     assert stats["position_latency_p50_s"] is not None and stats["position_latency_p50_s"] < 0.01
 
 
-def test_drifting_autopilot_clock_is_followed():
-    clock = RemoteClock(window_s=10.0)
-    rng = random.Random(5)
-    worst = 0.0
-    for k in range(60_000):  # 20 minutes at 50 Hz, autopilot crystal 80 ppm fast
+def crystal(rate: float, seconds: float, seed: int) -> list[tuple[float, float, float]]:
+    """(true_s, remote_s, received_s) at 50 Hz for an autopilot clock running at ``rate`` × real time."""
+    rng = random.Random(seed)
+    out = []
+    for k in range(int(seconds * 50)):
         true_s = k * 0.02
-        remote_s = true_s * (1 + 80e-6)
-        received_s = true_s + OFFSET_S + 0.0003 + rng.expovariate(1 / 0.002)
+        out.append((true_s, 100.0 + true_s * rate, true_s + OFFSET_S + 0.0003 + rng.expovariate(1 / 0.002)))
+    return out
+
+
+def test_drifting_autopilot_crystal_is_followed():
+    clock = RemoteClock(window_s=10.0)
+    worst = 0.0
+    for true_s, remote_s, received_s in crystal(1 + 150e-6, 1200.0, 5):  # 20 minutes, 150 ppm fast
         t_s = clock.stamp(remote_s, received_s)
-        if k > 500:
+        if true_s > 10.0:
             worst = max(worst, abs(t_s - (true_s + OFFSET_S)))
-    assert worst < 0.0025  # without the window the 0.1 s of accumulated drift would show in full
+    assert clock.mode == AUTOPILOT and clock.rate is not None and abs(clock.rate + 150e-6) < 30e-6
+    assert worst < 0.001  # the window's minimum alone would lag this drift by up to 1.5 ms
+
+
+def test_a_clock_not_in_real_time_keeps_receipt_stamps():
+    """PX4 SITL in lockstep at a real-time factor of 0.9: its time_boot_ms cannot be mapped."""
+    clock = RemoteClock()
+    for _true_s, remote_s, received_s in crystal(0.9, 60.0, 6):
+        assert clock.stamp(remote_s, received_s) == received_s
+    assert clock.mode == RECEIPT and clock.rate is not None and abs(clock.rate - 0.1 / 0.9) < 0.01
+    assert clock.summary("position")["position_clock"] == "receipt"
 
 
 def test_autopilot_reboot_starts_afresh():
     clock = RemoteClock()
-    for k in range(500):
+    for k in range(1000):
         clock.stamp(1000.0 + k * 0.02, OFFSET_S + 1000.0 + k * 0.02 + 0.001)
+    assert clock.mode == AUTOPILOT
     # rebooted: time_boot_ms restarts at 0, ten seconds of loop time later
-    t_s = clock.stamp(0.5, OFFSET_S + 1020.0 + 0.001)
+    t_s = clock.stamp(0.5, OFFSET_S + 1030.0 + 0.001)
     assert clock.resets == 1
-    assert abs(t_s - (OFFSET_S + 1020.0)) < 0.002  # not 1019.5 s earlier, as the old offset would say
+    assert clock.mode == RECEIPT and t_s == OFFSET_S + 1030.0 + 0.001  # not 1019.5 s earlier (the old offset)
+    for k in range(1, 500):
+        t_s = clock.stamp(0.5 + k * 0.02, OFFSET_S + 1030.0 + k * 0.02 + 0.001)
+    assert clock.mode == AUTOPILOT and abs(t_s - (OFFSET_S + 1030.0 + 499 * 0.02 + 0.001)) < 1e-6  # the new offset
 
 
 async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop_stalls(tmp_path):
@@ -110,6 +134,11 @@ async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop
             streams = asyncio.create_task(vehicle.run())
             try:
                 await vehicle.wait_ready(20.0)
+
+                async def on_autopilot_time() -> bool:
+                    return vehicle.link_stats()["position_clock"] == "autopilot"
+
+                await eventually(on_autopilot_time, 20.0)  # its rate is measured over the first 7.5 s
                 await vehicle.arm()
                 await vehicle.takeoff(8.0)
                 t_end_s = clock.now_s() + 60.0
