@@ -36,5 +36,14 @@ class VehicleConnectionError(VehicleError):
     """Raised when no autopilot answers, or what the mission needs (position, home) never arrives in time."""
 
 
-class PilotTookOver(AppError):
-    """Raised inside a command path when the pilot switched the flight mode away from us."""
+class CommandRefused(AppError):
+    """Raised by the vehicle boundary instead of sending a command that is not ours to send now.
+
+    ``authority`` says who has the vehicle: "pilot" (someone switched the flight mode) or "aborting" (only
+    ABORT's own stop may go out).
+    """
+
+    def __init__(self, command: str, authority: str) -> None:
+        self.command = command
+        self.authority = authority
+        super().__init__(f"{command} not sent: {authority} has the vehicle")

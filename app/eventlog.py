@@ -1,14 +1,26 @@
-"""The run's event log: one JSON object per line, flushed as written, so a crash loses nothing.
+"""The run's event log: one JSON object per line, written by a thread so the event loop never waits on disk.
 
 Every line has ``t_s`` (loop clock) and ``kind`` (``state``, ``command``, ``setpoint``, ``vehicle``, ``run``).
+``write`` only cleans the fields and puts the record on a bounded queue; the writer thread encodes and
+writes it. Nothing is dropped: when the queue is full (the disk stalls for seconds) ``write`` waits for
+room — the setpoint watchdog, a thread of its own, keeps the vehicle safe meanwhile. The file is flushed
+after every ``state`` and ``run`` record and whenever the queue runs empty, and ``close`` writes everything
+still queued before it returns, so a clean exit loses nothing and a crash loses at most the records of
+the last moments. ``write`` may be called from any thread (the watchdog logs through it).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import queue
+import threading
 from pathlib import Path
 from typing import IO, Any
+
+QUEUE_SIZE = 20_000  # records; ~7 minutes of 50 Hz setpoint decisions
+FLUSH_KINDS = frozenset({"state", "run"})
+_STOP = object()
 
 
 def _clean(value: Any) -> Any:
@@ -22,20 +34,48 @@ def _clean(value: Any) -> Any:
 
 
 class EventLog:
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, queue_size: int = QUEUE_SIZE) -> None:
         self.path = path
-        self._file: IO[str] | None = path.open("a", buffering=1) if path else None
         self.counts: dict[str, int] = {}
+        self.written = 0  # records the writer thread has written to the file
+        self._lock = threading.Lock()
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
+        self._file: IO[str] | None = path.open("a", buffering=1 << 16) if path else None
+        self._thread: threading.Thread | None = None
+        if self._file is not None:
+            self._thread = threading.Thread(target=self._writer, name="eventlog.writer", daemon=True)
+            self._thread.start()
 
     def write(self, t_s: float, kind: str, **fields: Any) -> None:
-        self.counts[kind] = self.counts.get(kind, 0) + 1
-        if self._file is None:
+        with self._lock:
+            self.counts[kind] = self.counts.get(kind, 0) + 1
+        if self._thread is None:
             return
-        line = {"t_s": round(t_s, 4), "kind": kind, **_clean(fields)}
-        self._file.write(json.dumps(line, separators=(",", ":")) + "\n")
-        self._file.flush()
+        self._queue.put({"t_s": round(t_s, 4), "kind": kind, **_clean(fields)})
+
+    def total(self) -> int:
+        """Records written so far (all kinds)."""
+        with self._lock:
+            return sum(self.counts.values())
 
     def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
-            self._file = None
+        """Write everything still queued, then close the file (idempotent)."""
+        if self._thread is not None:
+            self._queue.put(_STOP)
+            self._thread.join()
+            self._thread = None
+
+    def _writer(self) -> None:
+        f = self._file
+        assert f is not None
+        while True:
+            record = self._queue.get()
+            if record is _STOP:
+                break
+            f.write(json.dumps(record, separators=(",", ":")) + "\n")
+            self.written += 1
+            if record["kind"] in FLUSH_KINDS or self._queue.empty():
+                f.flush()
+        f.flush()
+        f.close()
+        self._file = None

@@ -18,6 +18,7 @@ import signal
 import socket
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,13 +28,13 @@ from app.errors import AppError, ConfigError
 from app.eventlog import EventLog
 from app.missions.runner import MissionRunner, RunResult
 from app.missions.table import MissionTable, load_mission
+from app.offboard.boundary import BoundaryParams, VehicleBoundary
 from app.offboard.envelope import EnvelopeLimits
 from app.offboard.guidance import ConstantBearingParams
-from app.offboard.setpoint_loop import LoopMode, SetpointLoop
+from app.offboard.setpoint_loop import SetpointLoop
 from app.offboard.vehicle import Vehicle
 from app.settings import Settings, load_settings
 
-SAFE_EXIT_TIMEOUT_S = 5.0
 SIM_PILOT_PORT = 14580
 
 
@@ -92,41 +93,59 @@ class Flight:
     setpoints_sent: int
     tracking: dict[str, Any]
     timing: dict[str, Any]  # telemetry latency and setpoint spacing: what a busy computer did to the run
+    safety: dict[str, Any]  # what the boundary refused, dropped or had to do (watchdog)
 
 
-async def safe_exit(vehicle: Vehicle, setpoints: SetpointLoop, clock: Clock, events: EventLog) -> None:
-    """Leaving offboard on our own account: zero velocity, then HOLD. Nothing if we were not guiding."""
-    if setpoints.mode != LoopMode.GUIDE:
-        setpoints.disengage()
-        return
-    setpoints.disengage()
-    events.write(clock.now_s(), "run", event="safe_exit", action="zero_velocity_then_hold")
-    try:
-        async with asyncio.timeout(SAFE_EXIT_TIMEOUT_S):
-            await vehicle.stop_offboard()
-        events.write(clock.now_s(), "command", name="stop_offboard", result="ok")
-    except (AppError, TimeoutError) as e:
-        events.write(clock.now_s(), "command", name="stop_offboard", result="failed", error=str(e))
-
-
-async def fly_mission(
+def build_flight(
     vehicle: Vehicle, table: MissionTable, settings: Settings, clock: Clock, events: EventLog
-) -> Flight:
-    """Run one mission on a connected vehicle; always ends with a safe exit."""
+) -> tuple[VehicleBoundary, SetpointLoop, MissionRunner]:
+    """The boundary, the setpoint loop and the runner for one mission on ``vehicle``."""
     g, e = settings.guidance, settings.envelope
-    setpoints = SetpointLoop(
+    boundary = VehicleBoundary(
         vehicle,
         clock,
         events,
+        BoundaryParams(
+            limits=EnvelopeLimits(**e.model_dump()),
+            setpoint_period_s=1.0 / g.setpoint_rate_hz,
+            exit_zero_s=g.exit_zero_s,
+            exit_timeout_s=g.exit_timeout_s,
+            watchdog_timeout_s=g.watchdog_timeout_s,
+            position_stale_s=settings.telemetry.position_stale_s,
+        ),
+    )
+    setpoints = SetpointLoop(
+        boundary,
+        clock,
+        events,
         ConstantBearingParams(g.approach_speed_max_mps, g.transient_distance_m, g.velocity_lead_s),
-        EnvelopeLimits(**e.model_dump()),
         g.setpoint_rate_hz,
         g.standby_rate_hz,
         settings.telemetry.position_stale_s,
     )
     runner = MissionRunner(
-        table, vehicle, setpoints, clock, events, settings.runner.tick_rate_hz, settings.runner.mode_confirm_timeout_s
+        table, boundary, setpoints, clock, events, settings.runner.tick_rate_hz, settings.runner.mode_confirm_timeout_s
     )
+    return boundary, setpoints, runner
+
+
+async def fly_mission(
+    vehicle: Vehicle,
+    table: MissionTable,
+    settings: Settings,
+    clock: Clock,
+    events: EventLog,
+    on_start: Callable[[MissionRunner], None] | None = None,
+) -> Flight:
+    """Run one mission on a connected vehicle; always ends with a safe exit.
+
+    The first SIGINT/SIGTERM asks the mission to ABORT; a second one cancels the run, and the safe exit
+    (zero velocity, then HOLD, if we still own offboard) runs on the way out — shielded, bounded.
+    ``on_start(runner)`` is called once the runner exists (fault injection, the ground station).
+    """
+    boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
+    if on_start is not None:
+        on_start(runner)
     loop = asyncio.get_running_loop()
     main_task = asyncio.current_task()
     signals_seen = 0
@@ -137,10 +156,11 @@ async def fly_mission(
         if signals_seen == 1:
             runner.request_abort(signame)
         elif main_task is not None:
+            events.write(clock.now_s(), "run", event="second_signal", signal=signame)
             main_task.cancel()
 
     for sig in (signal.SIGINT, signal.SIGTERM):
-        with contextlib.suppress(NotImplementedError, RuntimeError):
+        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
             loop.add_signal_handler(sig, on_signal, sig.name)
     t_start_s = clock.now_s()
     try:
@@ -152,16 +172,30 @@ async def fly_mission(
                 events.write(clock.now_s(), "run", event="vehicle_ready", autopilot=vehicle.autopilot.value)
                 result = await runner.run()
             finally:
-                await safe_exit(vehicle, setpoints, clock, events)
-                streams.cancel()
-                loop_task.cancel()
+                try:
+                    await boundary.release("safe exit")
+                finally:
+                    loop_task.cancel()
+                    streams.cancel()
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
-            with contextlib.suppress(NotImplementedError, RuntimeError):
+            with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
                 loop.remove_signal_handler(sig)
     timing = vehicle.link_stats() | setpoints.interval_summary()
+    safety = {
+        "non_finite_samples": boundary.non_finite_samples,
+        "setpoint_send_failures": boundary.send_failures_total,
+        "watchdog_fired": boundary.watchdog.fired_count,
+        "refused": dict(boundary.refused),
+    }
     return Flight(
-        result, clock.now_s() - t_start_s, vehicle.autopilot.value, setpoints.sent, runner.tracking.summary(), timing
+        result,
+        clock.now_s() - t_start_s,
+        vehicle.autopilot.value,
+        setpoints.sent,
+        runner.tracking.summary(),
+        timing,
+        safety,
     )
 
 
@@ -220,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
             setpoints_sent=flight.setpoints_sent,
             **flight.tracking,
             timing={k: round(v, 6) if isinstance(v, float) else v for k, v in flight.timing.items()},
+            safety=flight.safety,
         )
     except BaseException as exc:
         leaf = first_leaf(exc)

@@ -1,8 +1,8 @@
 """Frozen messages that travel between the parts of the app.
 
-Every message carries ``t_s``: the loop-clock time it was *measured* (for telemetry: received), not the
-time it was used. Vectors are ``(north, east, down)`` tuples in metres or metres per second, as their
-names say (``_ned_m``, ``_ned_mps``).
+Every message carries ``t_s``: the loop-clock time it was *measured* (for telemetry: when the autopilot took
+the sample, or when it was received — never when it was read), not the time it was used. Vectors are
+``(north, east, down)`` tuples in metres or metres per second, as their names say (``_ned_m``, ``_ned_mps``).
 """
 
 from __future__ import annotations
@@ -90,7 +90,10 @@ class Stamped(Generic[T]):
 
 @dataclass(frozen=True, slots=True)
 class TelemetrySnapshot:
-    """The latest of every telemetry stream, each stamped; ``None`` until the first sample arrived."""
+    """The latest of every telemetry stream, each stamped; ``None`` until the first sample arrived.
+
+    ``heartbeat_t_s``: when the autopilot's last HEARTBEAT was received (the link is alive).
+    """
 
     pos_vel: PositionVelocityNed | None = None
     attitude: AttitudeEuler | None = None
@@ -98,6 +101,7 @@ class TelemetrySnapshot:
     armed: Stamped[bool] | None = None
     landed_state: Stamped[LandedState] | None = None
     home_ned_m: Vec3 | None = None
+    heartbeat_t_s: float | None = None
 
     def mode(self) -> FlightMode:
         return self.flight_mode.value if self.flight_mode else FlightMode.UNKNOWN

@@ -29,6 +29,9 @@ class ConnectionSettings(_Model):
     command_retry_timeout_s: float = Field(
         20.0, ge=1.0, le=120.0, description="retry a refused arm (pre-arm checks still running) for this long, s"
     )
+    setpoint_timeout_s: float = Field(
+        0.2, ge=0.01, le=2.0, description="a setpoint not handed to MAVSDK within this counts as failed, s"
+    )
 
 
 class TelemetrySettings(_Model):
@@ -75,6 +78,18 @@ class GuidanceSettings(_Model):
         description="target-acceleration feed-forward τ_lead, ≈ the autopilot velocity-loop lag; 0: thesis law, s",
     )
     setpoint_rate_hz: float = Field(50.0, ge=20.0, le=100.0, description="offboard setpoint loop rate, Hz")
+    exit_zero_s: float = Field(
+        0.5, ge=0.05, le=5.0, description="leaving offboard on our own account: zero velocity this long, then HOLD, s"
+    )
+    exit_timeout_s: float = Field(
+        5.0, ge=0.5, le=30.0, description="the whole exit from offboard (zeros, then HOLD) is bounded by this, s"
+    )
+    watchdog_timeout_s: float = Field(
+        0.2,
+        ge=0.05,
+        le=2.0,
+        description="no setpoint from the event loop for this long → the watchdog thread commands zero velocity, s",
+    )
     standby_rate_hz: float = Field(
         5.0,
         ge=0.0,

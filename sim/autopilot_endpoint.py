@@ -264,6 +264,15 @@ class SimAutopilot:
         elif pilot:
             return  # the pilot port only takes commands
         elif kind == "SET_POSITION_TARGET_LOCAL_NED" and msg.target_system in (0, 1):
+            self._log(
+                "setpoint",
+                t_s,
+                vel_ned_mps=(msg.vx, msg.vy, msg.vz),
+                yaw_rad=msg.yaw,
+                type_mask=msg.type_mask,
+                frame=msg.coordinate_frame,
+                mode=self.stack.flight_mode.value,
+            )
             self.stack.position_target(
                 t_s,
                 PositionTarget(

@@ -13,13 +13,23 @@ It behaves like the MAVSDK adapter talking to the MAVLink endpoint would:
   doing so when ``stop_offboard`` is called or when the vehicle has not been in OFFBOARD for 3 s since
   the stream started (MAVSDK's watchdog) — so the offboard-loss failsafe fires only if that happens;
 - PX4 ``takeoff(alt)`` sets MIS_TAKEOFF_ALT then takes off; ArduPilot switches to GUIDED and takes
-  off with the altitude in the command.
+  off with the altitude in the command;
+- the setpoint watchdog (``attach_watchdog``) is polled from the physics steps, on the simulated world's
+  clock — the stand-in for the thread that polls it next to MAVSDK — and ``zero_velocity_now`` replaces
+  the setpoint being re-sent, as the adapter does from that thread.
+
+``records`` is the vehicle's side of the story, in the simulator's state-log format (``sim.state_log``):
+every setpoint it receives (``setpoint``: ``vel_ned_mps``, ``yaw_rad``, ``origin`` app/resend/watchdog),
+every command with its source (``command``: ``command``, ``mode``, ``result``, ``source`` link/pilot/
+autopilot) and every mode, armed and landed-state change. ``sim.safety_rules`` checks the safety rules
+on it; ``state_log`` also writes it to a file.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
+from typing import Any
 
 from app.errors import VehicleConnectionError, VehicleError
 from app.messages import (
@@ -31,10 +41,12 @@ from app.messages import (
     TelemetrySnapshot,
     Vec3,
 )
+from app.offboard.watchdog import SetpointWatchdog
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, MavResult, Mode, Profile, mode_for
 from sim.dynamics import Dynamics, MultirotorParams
 from sim.flight_stack import FlightStack
 from sim.stack_types import PositionTarget, StackEvent, Truth
+from sim.state_log import StateLog
 from sim.wind import Wind, WindConfig
 
 SETPOINT_RESEND_S = 0.05  # MAVSDK offboard re-sends the last setpoint at 20 Hz
@@ -61,15 +73,21 @@ class InProcessVehicle:
         vehicle_params: MultirotorParams | None = None,
         physics_hz: float = 100.0,
         gps_fix_delay_s: float = 1.0,
+        state_log: StateLog | None = None,
     ) -> None:
         """``wind`` None = the default wind (5 m/s from 240°, 1 m/s gusts); ``WindConfig.off()`` = still air."""
         dynamics = Dynamics(vehicle_params, Wind(wind if wind is not None else WindConfig(), seed=seed))
         self.events: list[StackEvent] = []
-        self.stack = FlightStack(dynamics, profile, origin, params, gps_fix_delay_s, on_event=self.events.append)
+        self.records: list[dict[str, Any]] = []
+        self._state_log = state_log
+        self.stack = FlightStack(dynamics, profile, origin, params, gps_fix_delay_s, on_event=self._on_event)
         self._period_s = 1.0 / physics_hz
         self._stream: PositionTarget | None = None
         self._stream_started_s = 0.0
         self._next_resend_s = 0.0
+        self._watchdogs: list[SetpointWatchdog] = []
+        boot = self.stack.mode
+        self._record("mode", 0.0, mode=boot.flight_mode.value, autopilot_mode=boot.label, reason="boot")
 
     # -- the Vehicle protocol -------------------------------------------------------------------
 
@@ -109,53 +127,62 @@ class InProcessVehicle:
             armed=Stamped(t_s, st.armed),
             landed_state=Stamped(t_s, st.landed_state),
             home_ned_m=st.home_ned_m,
+            heartbeat_t_s=t_s,
         )
 
     def link_stats(self) -> dict[str, float | str | None]:
         return {}  # no link: samples are read straight from the physics
 
     async def arm(self) -> None:
-        self._check("arm", self.stack.arm(self._advance()))
+        t_s = self._advance()
+        self._check("arm", self._command(t_s, "COMPONENT_ARM_DISARM", self.stack.arm(t_s)))
         await asyncio.sleep(0)
 
     async def takeoff(self, altitude_m: float) -> None:
         t_s = self._advance()
-        if self.stack.profile is Profile.ARDUPILOT:
-            self._check("takeoff", self.stack.set_mode(t_s, Mode.AP_GUIDED))
-            self._check("takeoff", self.stack.takeoff(t_s, altitude_m))
+        st = self.stack
+        if st.profile is Profile.ARDUPILOT:
+            self._check("takeoff", self._command(t_s, "DO_SET_MODE", st.set_mode(t_s, Mode.AP_GUIDED), Mode.AP_GUIDED))
+            self._check("takeoff", self._command(t_s, "NAV_TAKEOFF", st.takeoff(t_s, altitude_m)))
         else:
-            if not self.stack.params.set("MIS_TAKEOFF_ALT", altitude_m):
+            if not st.params.set("MIS_TAKEOFF_ALT", altitude_m):
                 raise VehicleError("takeoff", "PARAMETER_ERROR", f"altitude {altitude_m}")
-            self._check("takeoff", self.stack.takeoff(t_s, math.nan))
+            self._check("takeoff", self._command(t_s, "NAV_TAKEOFF", st.takeoff(t_s, math.nan)))
         await asyncio.sleep(0)
 
     async def start_offboard(self, yaw_rad: float) -> None:
         await self.set_velocity_ned((0.0, 0.0, 0.0), yaw_rad)
         offboard = Mode.AP_GUIDED if self.stack.profile is Profile.ARDUPILOT else Mode.OFFBOARD
-        self._check("start_offboard", self.stack.set_mode(self._advance(), offboard))
+        t_s = self._advance()
+        self._check("start_offboard", self._command(t_s, "DO_SET_MODE", self.stack.set_mode(t_s, offboard), offboard))
         await asyncio.sleep(0)
 
     async def set_velocity_ned(self, vel_ned_mps: Vec3, yaw_rad: float) -> None:
-        t_s = self._advance()
-        target = PositionTarget.velocity(vel_ned_mps, yaw_rad)
-        if self._stream is None:
-            self._stream_started_s = t_s
-        self._stream = target
-        self._next_resend_s = t_s + SETPOINT_RESEND_S
-        self.stack.position_target(t_s, target)
+        self._set_stream(self._advance(), PositionTarget.velocity(vel_ned_mps, yaw_rad), "app")
+
+    def zero_velocity_now(self, yaw_rad: float) -> None:
+        """What the adapter does from the watchdog's thread: the re-sent setpoint becomes zero velocity."""
+        if self._stream is not None:
+            self._set_stream(self.stack.t_s, PositionTarget.velocity((0.0, 0.0, 0.0), yaw_rad), "watchdog")
+
+    def attach_watchdog(self, watchdog: SetpointWatchdog) -> None:
+        self._watchdogs.append(watchdog)
 
     async def hold(self) -> None:
-        self._check("hold", self.stack.hold(self._advance()))
+        t_s = self._advance()
+        self._check("hold", self._command(t_s, "DO_SET_MODE", self.stack.hold(t_s), self._hold_mode()))
         await asyncio.sleep(0)
 
     async def stop_offboard(self) -> None:
         await self.set_velocity_ned((0.0, 0.0, 0.0), self.stack.dyn.state.yaw_rad)
         self._stream = None
-        self._check("stop_offboard", self.stack.hold(self._advance()))
+        t_s = self._advance()
+        self._check("stop_offboard", self._command(t_s, "DO_SET_MODE", self.stack.hold(t_s), self._hold_mode()))
         await asyncio.sleep(0)
 
     async def land(self) -> None:
-        self._check("land", self.stack.land(self._advance()))
+        t_s = self._advance()
+        self._check("land", self._command(t_s, "NAV_LAND", self.stack.land(t_s)))
         await asyncio.sleep(0)
 
     # -- for tests and scenarios ----------------------------------------------------------------
@@ -170,7 +197,16 @@ class InProcessVehicle:
         )
         if mode is None:
             raise VehicleError("pilot_set_mode", "UNSUPPORTED", flight_mode.value)
-        self._check("pilot_set_mode", self.stack.set_mode(self._advance(), mode, "pilot"))
+        t_s = self._advance()
+        result = self.stack.set_mode(t_s, mode, "pilot")
+        self._check("pilot_set_mode", self._command(t_s, "DO_SET_MODE", result, mode, source="pilot"))
+
+    def autopilot_failsafe(self, flight_mode: FlightMode) -> None:
+        """The autopilot switches mode on its own (a battery, RC- or link-loss failsafe): RTL or LAND."""
+        mode = mode_for(self.stack.profile, flight_mode)
+        if mode is None:
+            raise VehicleError("autopilot_failsafe", "UNSUPPORTED", flight_mode.value)
+        self.stack.set_mode(self._advance(), mode, "failsafe")
 
     def truth(self) -> Truth:
         """The simulated truth, brought up to the loop's now when called inside a running loop."""
@@ -187,18 +223,65 @@ class InProcessVehicle:
     # -- internals ------------------------------------------------------------------------------
 
     def _advance(self) -> float:
-        """Bring the simulation up to the loop's now, re-sending setpoints as MAVSDK does on the way."""
+        """Bring the simulation up to the loop's now, re-sending setpoints as MAVSDK does on the way.
+
+        The setpoint watchdogs are polled at every re-send and at ``now`` (on the world's clock).
+        """
         t_s = asyncio.get_running_loop().time()
         st = self.stack
         while self._stream is not None and self._next_resend_s <= t_s:
-            st.step(self._next_resend_s)
-            if self._watchdog_expired(self._next_resend_s):
+            t_resend_s = self._next_resend_s
+            st.step(t_resend_s)
+            self._poll_watchdogs(t_resend_s)  # may replace the stream (and push the next re-send)
+            if self._stream is None or self._next_resend_s != t_resend_s:
+                continue
+            if self._watchdog_expired(t_resend_s):
                 self._stream = None
                 break
-            st.position_target(self._next_resend_s, self._stream)
+            self._record("setpoint", t_resend_s, **_setpoint_fields(self._stream), origin="resend")
+            st.position_target(t_resend_s, self._stream)
             self._next_resend_s += SETPOINT_RESEND_S
         st.step(t_s)
+        self._poll_watchdogs(t_s)
         return t_s
+
+    def _poll_watchdogs(self, t_s: float) -> None:
+        for w in self._watchdogs:
+            w.poll(t_s)
+
+    def _set_stream(self, t_s: float, target: PositionTarget, origin: str) -> None:
+        if self._stream is None:
+            self._stream_started_s = t_s
+        self._stream = target
+        self._next_resend_s = t_s + SETPOINT_RESEND_S
+        self._record("setpoint", t_s, **_setpoint_fields(target), origin=origin)
+        self.stack.position_target(t_s, target)
+
+    def _hold_mode(self) -> Mode:
+        return Mode.AP_BRAKE if self.stack.profile is Profile.ARDUPILOT else Mode.AUTO_LOITER
+
+    def _command(
+        self, t_s: float, command: str, result: MavResult, mode: Mode | None = None, source: str = "link"
+    ) -> MavResult:
+        fields: dict[str, Any] = {"command": command, "result": result.name, "source": source}
+        if mode is not None:
+            fields["mode"] = mode.flight_mode.value
+        self._record("command", t_s, **fields)
+        return result
+
+    def _on_event(self, ev: StackEvent) -> None:
+        self.events.append(ev)
+        if ev.kind == "mode" and ev.mode is not None:
+            self._record("mode", ev.t_s, mode=ev.mode.flight_mode.value, autopilot_mode=ev.mode.label, reason=ev.reason)
+        elif ev.kind == "armed":
+            self._record("armed", ev.t_s, armed=ev.armed, reason=ev.reason)
+        elif ev.kind == "landed_state" and ev.landed_state is not None:
+            self._record("landed_state", ev.t_s, landed_state=ev.landed_state.value)
+
+    def _record(self, event: str, t_s: float, **fields: Any) -> None:
+        self.records.append({"t_s": t_s, "event": event, **fields})
+        if self._state_log is not None:
+            self._state_log.write(event, t_s, **fields)
 
     def _watchdog_expired(self, t_s: float) -> bool:
         in_offboard = self.stack.flight_mode is FlightMode.OFFBOARD
@@ -208,3 +291,7 @@ class InProcessVehicle:
     def _check(command: str, result: MavResult) -> None:
         if result is not MavResult.ACCEPTED:
             raise VehicleError(command, _RESULT_NAMES.get(result, result.name))
+
+
+def _setpoint_fields(target: PositionTarget) -> dict[str, Any]:
+    return {"vel_ned_mps": list(target.vel_ned_mps), "yaw_rad": target.yaw_rad}

@@ -13,6 +13,9 @@ since the simulated autopilot booted) and ``event``. Events written by ``sim.aut
 - ``statustext``: ``text``, ``severity`` (MAV_SEVERITY).
 - ``command``: ``command`` (MAV_CMD name without the prefix, e.g. "DO_SET_MODE"), ``result`` (MAV_RESULT
   name, e.g. "ACCEPTED", "DENIED"), ``source`` ("link" = MAVSDK's port, "pilot"), ``params`` (NaN → null).
+- ``setpoint``: every SET_POSITION_TARGET_LOCAL_NED received (MAVSDK's 20 Hz re-sends included):
+  ``vel_ned_mps``, ``yaw_rad``, ``type_mask``, ``frame``, ``mode`` (the mode it arrived in). The in-process
+  vehicle (``sim.inproc``) writes the same record with ``origin`` (app, resend, watchdog) instead.
 - ``param``: ``name``, ``value``.   ``home``: ``home_ned_m``.   ``gripper``: ``action``.
 - ``truth`` at 10 Hz: ``pos_ned_m``, ``vel_ned_mps``, ``att_rad`` (roll, pitch, yaw), ``mode``,
   ``armed``, ``landed_state``, ``wind_ned_mps``, ``battery_v``, ``battery_remaining``.

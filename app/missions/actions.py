@@ -1,9 +1,9 @@
 """Entry actions: the only place a mission commands the vehicle. Named in the mission table.
 
-Each action says whether it commands the vehicle (the runner never runs those while the pilot has
-control) and which state ``control`` kinds may use it (checked when the table is loaded). An action that
-changes the flight mode tells the runner which modes to expect, so any other mode seen afterwards is
-recognised as someone else taking over.
+Actions command through ``VehicleBoundary`` (``io.boundary``), which refuses anything that is not ours to
+send (the pilot has control, an abort is under way) and sets the flight modes to expect. Each action says
+which state ``control`` kinds may use it (checked when the table is loaded). The runner runs a state's
+actions as one cancellable task: a takeover or an abort cancels them at their next await.
 """
 
 from __future__ import annotations
@@ -12,22 +12,19 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from app.messages import FlightMode
 from app.missions.circle import CircleTarget, TrackingErrors
 from app.missions.params import MissionParams
-from app.offboard.setpoint_loop import LoopMode, SetpointLoop
-from app.offboard.vehicle import Vehicle
+from app.offboard.boundary import VehicleBoundary
+from app.offboard.setpoint_loop import SetpointLoop
 
 
 class MissionIO(Protocol):
-    vehicle: Vehicle
+    boundary: VehicleBoundary
     setpoints: SetpointLoop
     params: MissionParams
     tracking: TrackingErrors
 
     def now_s(self) -> float: ...
-
-    def expect_modes(self, modes: frozenset[FlightMode]) -> None: ...
 
 
 Action = Callable[[MissionIO], Awaitable[None]]
@@ -36,32 +33,26 @@ Action = Callable[[MissionIO], Awaitable[None]]
 @dataclass(frozen=True, slots=True)
 class ActionSpec:
     fn: Action
-    commands_vehicle: bool
     control: tuple[str, ...] | None  # state control kinds allowed; None: any
 
 
 async def arm(io: MissionIO) -> None:
-    await io.vehicle.arm()
+    await io.boundary.arm()
 
 
 async def takeoff(io: MissionIO) -> None:
-    # PX4: AUTO.TAKEOFF then AUTO.LOITER; ArduPilot: GUIDED (reads as OFFBOARD).
-    io.expect_modes(frozenset({FlightMode.TAKEOFF, FlightMode.HOLD, FlightMode.OFFBOARD}))
-    await io.vehicle.takeoff(io.params.takeoff_altitude_m)
+    await io.boundary.takeoff(io.params.takeoff_altitude_m)
 
 
 async def start_offboard(io: MissionIO) -> None:
     """Zero setpoint, OFFBOARD, then the setpoint loop holds position until a target is set."""
-    tel = io.vehicle.telemetry()
-    yaw_rad = tel.attitude.yaw_rad if tel.attitude else 0.0
-    io.expect_modes(frozenset({FlightMode.OFFBOARD}))
-    await io.vehicle.start_offboard(yaw_rad)
+    await io.boundary.start_offboard()
     io.setpoints.engage(None)
 
 
 async def start_circle(io: MissionIO) -> None:
     """Track the thesis's circle target, starting at the vehicle's current position."""
-    pv = io.vehicle.telemetry().pos_vel
+    pv = io.boundary.telemetry().pos_vel
     if pv is None:
         return  # the loop keeps holding; position_lost will abort
     p = io.params
@@ -76,31 +67,21 @@ async def hold_position(io: MissionIO) -> None:
 
 
 async def land(io: MissionIO) -> None:
-    io.setpoints.disengage()
-    io.expect_modes(frozenset({FlightMode.LAND}))
-    await io.vehicle.land()
+    await io.boundary.land()
 
 
 async def stop_and_hold(io: MissionIO) -> None:
-    """ABORT: if we are streaming setpoints, zero velocity then HOLD; else HOLD if still flying."""
-    was_guiding = io.setpoints.mode == LoopMode.GUIDE
+    """ABORT: zero velocity then HOLD if we own offboard, else HOLD if armed (shielded, bounded)."""
     io.setpoints.disengage()
-    tel = io.vehicle.telemetry()
-    if not tel.is_armed():
-        return
-    io.expect_modes(frozenset({FlightMode.HOLD}))
-    if was_guiding:
-        await io.vehicle.stop_offboard()
-    else:
-        await io.vehicle.hold()
+    await io.boundary.abort_stop("abort")
 
 
 ACTIONS: dict[str, ActionSpec] = {
-    "arm": ActionSpec(arm, True, ("autopilot",)),
-    "takeoff": ActionSpec(takeoff, True, ("autopilot",)),
-    "start_offboard": ActionSpec(start_offboard, True, ("offboard",)),
-    "start_circle": ActionSpec(start_circle, True, ("offboard",)),
-    "hold_position": ActionSpec(hold_position, True, ("offboard",)),
-    "land": ActionSpec(land, True, ("autopilot",)),
-    "stop_and_hold": ActionSpec(stop_and_hold, True, None),
+    "arm": ActionSpec(arm, ("autopilot",)),
+    "takeoff": ActionSpec(takeoff, ("autopilot",)),
+    "start_offboard": ActionSpec(start_offboard, ("offboard",)),
+    "start_circle": ActionSpec(start_circle, ("offboard",)),
+    "hold_position": ActionSpec(hold_position, ("offboard",)),
+    "land": ActionSpec(land, ("autopilot",)),
+    "stop_and_hold": ActionSpec(stop_and_hold, None),
 }

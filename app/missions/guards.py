@@ -1,4 +1,9 @@
-"""Guards: pure predicates over an immutable context snapshot. Named in the mission table."""
+"""Guards: pure predicates over an immutable context snapshot. Named in the mission table.
+
+``LINK_GUARDS`` must appear in every flying state of a table (the validator refuses one without them): an
+abort request, a lost link (no HEARTBEAT, or the attitude stream dead, for ``link_lost_s``), a lost position
+stream and setpoints that keep failing to go out.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +13,7 @@ from dataclasses import dataclass
 from app.messages import TelemetrySnapshot
 from app.missions.circle import CircleTarget
 from app.missions.params import MissionParams
+from app.offboard.boundary import LinkHealth
 
 
 @dataclass(frozen=True, slots=True)
@@ -16,6 +22,7 @@ class GuardContext:
     state: str
     time_in_state_s: float
     telemetry: TelemetrySnapshot
+    health: LinkHealth
     params: MissionParams
     target: object | None  # the setpoint loop's active target source
     abort_requested: bool
@@ -55,7 +62,28 @@ def abort_requested(ctx: GuardContext) -> bool:
     return ctx.abort_requested
 
 
+def link_lost(ctx: GuardContext) -> bool:
+    """No HEARTBEAT, or no attitude sample (a dead stream), for ``link_lost_s``."""
+    h, limit = ctx.health, ctx.params.link_lost_s
+    return any(age is None or age > limit for age in (h.heartbeat_age_s, h.attitude_age_s))
+
+
+def setpoints_failing(ctx: GuardContext) -> bool:
+    return ctx.health.send_failures >= ctx.params.setpoint_failures_abort
+
+
 GUARDS: dict[str, Guard] = {
     g.__name__: g
-    for g in (always, vehicle_ready, at_takeoff_altitude, circle_laps_done, disarmed, position_lost, abort_requested)
+    for g in (
+        always,
+        vehicle_ready,
+        at_takeoff_altitude,
+        circle_laps_done,
+        disarmed,
+        position_lost,
+        abort_requested,
+        link_lost,
+        setpoints_failing,
+    )
 }
+LINK_GUARDS = ("abort_requested", "link_lost", "position_lost", "setpoints_failing")

@@ -25,6 +25,12 @@ class MissionParams(BaseModel):
     position_lost_abort_s: float = Field(
         2.0, ge=0.2, le=30.0, description="no position sample for this long in a guided state → ABORT, s"
     )
+    link_lost_s: float = Field(
+        3.0, ge=0.5, le=30.0, description="no HEARTBEAT (or a dead attitude stream) for this long → link lost, s"
+    )
+    setpoint_failures_abort: int = Field(
+        10, ge=1, le=1000, description="this many setpoints in a row failing to go out → setpoints_failing, count"
+    )
     target_filter: Literal["constant_velocity", "wave"] = Field(
         "wave", description="object motion model: the thesis's constant velocity, or current + waves"
     )

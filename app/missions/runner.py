@@ -1,46 +1,46 @@
-"""The mission runner: ticks the table on the loop clock.
+"""The mission runner: ticks the table on the loop clock; a state's entry runs as a cancellable task.
 
-Each tick builds one immutable ``GuardContext``, then in order:
-1. takeover — in a flying state while armed, a pilot mode (POSCTL, ALTCTL, …), or (in the air) any mode other
-   than the ones our last command expects once that command had shown in telemetry, means someone else has
-   the vehicle: enter MANUAL, stop guiding at once, command nothing (PX4: standby setpoints only);
-2. handback — in MANUAL, OFFBOARD selected by the pilot (ArduPilot: GUIDED) resumes the table's choice;
-3. the state's transitions in order, first true guard wins;
-4. the state's timeout.
-A command the vehicle refuses sends the mission to ABORT. Entry actions that command the vehicle never
-run while the pilot has control.
+Entering a state starts one task (in the runner's TaskGroup) that first leaves offboard if the new state
+does not fly offboard and we own it (zero velocity, then HOLD: ``VehicleBoundary.leave_offboard``,
+shielded), then runs the state's entry actions in order. The runner keeps ticking meanwhile, so nothing
+an action does — an arm retried for seconds, a command waiting for its ACK — can delay a takeover or an
+abort. Each tick, in order:
+
+1. takeover — the boundary judges the freshest flight mode (``app.offboard.mode_watch``). A pilot's switch,
+   or an autopilot failsafe mode, while the mission flies enters MANUAL at once: the entry task is
+   cancelled, guidance stops and nothing is commanded any more (PX4: zero standby setpoints only). The
+   boundary makes the same check right before every command and setpoint, so a command an action was
+   about to send after the switch is refused rather than sent;
+2. a commanded flight mode that never showed in telemetry within ``mode_confirm_timeout_s`` → ABORT;
+3. handback — in MANUAL, the pilot selecting OFFBOARD (ArduPilot: GUIDED) resumes the table's choice;
+4. the state's transitions in order, first true guard wins (taking one cancels the entry in progress);
+5. the state's timeout.
+
+A command the vehicle refuses sends the mission to ABORT. An abort request (signal, ground station) enters
+ABORT at once from any state, preempting whatever runs; from then on only ABORT's own stop goes out.
 """
 
 from __future__ import annotations
 
+import asyncio
 from dataclasses import dataclass, field
 
 from app.clock import Clock, sleep_until
-from app.errors import VehicleError
+from app.errors import CommandRefused, VehicleError
 from app.eventlog import EventLog
-from app.messages import PILOT_MODES, Autopilot, FlightMode, LandedState
+from app.messages import Autopilot
 from app.missions.actions import ACTIONS
 from app.missions.circle import TrackingErrors
 from app.missions.guards import GUARDS, GuardContext
 from app.missions.params import MissionParams
-from app.missions.table import MissionTable
+from app.missions.table import MissionTable, StateSpec
+from app.offboard.boundary import VehicleBoundary
+from app.offboard.mode_watch import Takeover
 from app.offboard.setpoint_loop import SetpointLoop
-from app.offboard.vehicle import Vehicle
 
-
-@dataclass
-class ModeWatch:
-    """Which flight modes our last command allows, and whether telemetry has shown one of them yet."""
-
-    expected: frozenset[FlightMode] | None = None
-    since_s: float = 0.0
-    confirmed: bool = False
-
-    def expect(self, modes: frozenset[FlightMode], t_s: float) -> None:
-        self.expected, self.since_s, self.confirmed = modes, t_s, False
-
-    def clear(self, t_s: float) -> None:
-        self.expected, self.since_s, self.confirmed = None, t_s, False
+# After a takeover, OFFBOARD showing up this soon after our own OFFBOARD command is that command landing
+# late (MAVSDK retries a command for ~2 s), not the pilot handing back.
+LATE_COMMAND_S = 3.0
 
 
 @dataclass
@@ -55,7 +55,7 @@ class MissionRunner:
     def __init__(
         self,
         table: MissionTable,
-        vehicle: Vehicle,
+        boundary: VehicleBoundary,
         setpoints: SetpointLoop,
         clock: Clock,
         events: EventLog,
@@ -63,7 +63,7 @@ class MissionRunner:
         mode_confirm_timeout_s: float,
     ) -> None:
         self.table = table
-        self.vehicle = vehicle
+        self.boundary = boundary
         self.setpoints = setpoints
         self.params: MissionParams = table.params
         self.tracking = TrackingErrors()
@@ -71,139 +71,145 @@ class MissionRunner:
         self._events = events
         self._period_s = 1.0 / tick_rate_hz
         self._confirm_timeout_s = mode_confirm_timeout_s
-        self._watch = ModeWatch()
         self.state = ""
         self._entry_t_s = 0.0
         self._taken_over_from: str | None = None
         self._abort_requested = False
         self._abort_reason = ""
         self._result: RunResult | None = None
+        self._tg: asyncio.TaskGroup | None = None
+        self._entry: asyncio.Task[None] | None = None
         self.states_visited: list[str] = []
+        boundary.on_takeover = self._take_over
 
     # ---- MissionIO (what actions see) ---------------------------------------------------------
 
     def now_s(self) -> float:
         return self._clock.now_s()
 
-    def expect_modes(self, modes: frozenset[FlightMode]) -> None:
-        self._watch.expect(modes, self._clock.now_s())
-
     # ---- control --------------------------------------------------------------------------------
 
     def request_abort(self, reason: str) -> None:
-        if not self._abort_requested:
-            self._events.write(self._clock.now_s(), "run", event="abort_requested", reason=reason)
-            self._abort_reason = reason
-        self._abort_requested = True
+        """Enter ABORT now (from a signal handler or the ground station; runs on the loop's thread)."""
+        if self._abort_requested:
+            return
+        self._events.write(self._clock.now_s(), "run", event="abort_requested", reason=reason)
+        self._abort_requested, self._abort_reason = True, reason
+        self.boundary.request_abort()
+        if self._tg is not None and self._result is None and not self.table.states[self.state].abort:
+            self._enter(self.table.abort_state, f"abort requested ({reason})")
 
     @property
     def pilot_has_control(self) -> bool:
         return self._taken_over_from is not None
 
     async def run(self) -> RunResult:
-        await self._enter(self.table.initial, "start")
-        next_s = self._clock.now_s()
-        while self._result is None:
-            next_s = max(next_s + self._period_s, self._clock.now_s())
-            await sleep_until(self._clock, next_s)
-            await self.tick()
+        async with asyncio.TaskGroup() as tg:
+            self._tg = tg
+            self._enter(self.table.initial, "start")
+            if self._abort_requested:
+                self._enter(self.table.abort_state, f"abort requested ({self._abort_reason})")
+            next_s = self._clock.now_s()
+            while self._result is None:
+                next_s = max(next_s + self._period_s, self._clock.now_s())
+                await sleep_until(self._clock, next_s)
+                self.tick()
+            # Leaving the group waits for the final state's entry (ABORT's stop), which is bounded.
+        self._tg = None
         return self._result
 
-    async def tick(self) -> None:
+    def tick(self) -> None:
+        if self._result is not None:
+            return
+        b = self.boundary
+        if b.check_takeover() is not None:
+            return  # _take_over entered MANUAL
         now_s = self._clock.now_s()
         spec = self.table.states[self.state]
-        tel = self.vehicle.telemetry()
+        if b.commanding and not spec.abort and b.watch.overdue(now_s, self._confirm_timeout_s):
+            mode = b.telemetry().mode().value
+            self._enter(self.table.abort_state, f"flight mode {mode} never became {b.watch.describe_expected()}")
+            return
+        if spec.manual and b.may_hand_back(LATE_COMMAND_S):
+            self._hand_back()
+            return
         ctx = GuardContext(
             t_s=now_s,
             state=self.state,
             time_in_state_s=now_s - self._entry_t_s,
-            telemetry=tel,
+            telemetry=b.telemetry(),
+            health=b.health(now_s),
             params=self.params,
             target=self.setpoints.source,
             abort_requested=self._abort_requested,
         )
-        mode = tel.mode()
-        if spec.flying and tel.is_armed():
-            w = self._watch
-            # Only a mode sample received after our last mode command can confirm or contradict it
-            # (ArduPilot heartbeats come at 1 Hz: the snapshot may still show the mode before it).
-            fresh = tel.flight_mode is not None and tel.flight_mode.t_s >= w.since_s
-            if fresh and w.expected is not None and not w.confirmed and mode in w.expected:
-                w.confirmed = True
-            # On the ground the autopilot ends a landing itself (PX4: HOLD as it disarms, the mode seen through
-            # CURRENT_MODE before the 1 Hz heartbeat says disarmed): only a pilot mode is a takeover there.
-            on_ground = tel.landed_state is not None and tel.landed_state.value == LandedState.ON_GROUND
-            unexpected = w.confirmed and w.expected is not None and mode not in w.expected and not on_ground
-            if fresh and (mode in PILOT_MODES or unexpected):
-                await self._take_over(mode)
-                return
-            if w.expected is not None and not w.confirmed and now_s - w.since_s > self._confirm_timeout_s:
-                await self._enter(
-                    self.table.abort_state,
-                    f"flight mode {mode.value} never became {'/'.join(sorted(m.value for m in w.expected))}",
-                )
-                return
-        if self._abort_requested and not any(t.when == "abort_requested" for t in spec.transitions):
-            # A state that does not handle the request itself goes to ABORT (commands are skipped there
-            # while the pilot has control).
-            await self._enter(self.table.abort_state, f"abort requested ({self._abort_reason})")
-            return
-        if spec.manual and mode == FlightMode.OFFBOARD and tel.is_armed():
-            await self._hand_back()
-            return
         for t in spec.transitions:
             if GUARDS[t.when](ctx):
                 why = f"abort requested ({self._abort_reason})" if t.when == "abort_requested" else t.when
-                await self._enter(t.to, why)
+                self._enter(t.to, why)
                 return
         if spec.timeout_s is not None and spec.on_timeout and now_s - self._entry_t_s >= spec.timeout_s:
-            await self._enter(spec.on_timeout, f"timeout {spec.timeout_s:g} s in {self.state}")
+            self._enter(spec.on_timeout, f"timeout {spec.timeout_s:g} s in {self.state}")
 
-    async def _take_over(self, mode: FlightMode) -> None:
+    def _take_over(self, takeover: Takeover) -> None:
+        """The boundary saw someone else switch the mode (from any task): MANUAL now."""
+        if self._result is not None or self.table.states[self.state].manual:
+            return
         self._taken_over_from = self.state
-        self._watch.clear(self._clock.now_s())
-        if self.vehicle.autopilot == Autopilot.PX4:
+        if self.boundary.vehicle.autopilot is Autopilot.PX4:
             self.setpoints.standby()
         else:
             self.setpoints.disengage()
-        who = "pilot" if mode in PILOT_MODES else "autopilot"
-        await self._enter(self.table.manual_state, f"{who} switched to {mode.value}")
+        self._enter(self.table.manual_state, takeover.reason)
 
-    async def _hand_back(self) -> None:
+    def _hand_back(self) -> None:
         manual = self.table.states[self.state]
         src = self._taken_over_from or ""
         dst = manual.resume.get(src) or manual.resume_default or self.table.abort_state
         self._taken_over_from = None
+        self.boundary.hand_back()
         self.setpoints.disengage()
-        await self._enter(dst, f"handed back (OFFBOARD) after takeover in {src}")
+        self._enter(dst, f"handed back (OFFBOARD) after takeover in {src}")
 
-    async def _enter(self, name: str, reason: str) -> None:
+    # ---- entering a state -------------------------------------------------------------------------
+
+    def _enter(self, name: str, reason: str) -> None:
         now_s = self._clock.now_s()
         self._events.write(now_s, "state", **{"from": self.state or None, "to": name, "reason": reason})
         previous = self.state
+        entry = self._entry
+        if entry is not None and not entry.done() and entry is not asyncio.current_task():
+            entry.cancel()
         self.state = name
         self._entry_t_s = now_s
         self.states_visited.append(name)
         spec = self.table.states[name]
+        self.boundary.flying = spec.flying
         if spec.control != "offboard" and not spec.manual:
             self.setpoints.disengage()
-        for action in spec.entry:
-            a = ACTIONS[action]
-            if a.commands_vehicle and self.pilot_has_control:
-                self._events.write(self._clock.now_s(), "command", name=action, result="skipped_pilot_control")
-                continue
-            try:
-                await a.fn(self)
-                self._events.write(self._clock.now_s(), "command", name=action, result="ok")
-            except VehicleError as e:
-                self._events.write(self._clock.now_s(), "command", name=action, result=e.result, error=str(e))
-                if not spec.abort:
-                    await self._enter(self.table.abort_state, f"{action} failed in {name}: {e}")
-                    return
         if spec.terminal is not None:
-            self._result = RunResult(
-                spec.terminal, reason if spec.terminal != "completed" else "completed", self.states_visited, name
-            )
-            self._events.write(
-                self._clock.now_s(), "run", event="finished", outcome=spec.terminal, reason=reason, previous=previous
-            )
+            outcome_reason = reason if spec.terminal != "completed" else "completed"
+            self._result = RunResult(spec.terminal, outcome_reason, self.states_visited, name)
+            self._events.write(now_s, "run", event="finished", outcome=spec.terminal, reason=reason, previous=previous)
+        assert self._tg is not None
+        self._entry = self._tg.create_task(self._run_entry(name, spec, previous), name=f"mission.entry.{name}")
+
+    async def _run_entry(self, name: str, spec: StateSpec, previous: str) -> None:
+        try:
+            if spec.control != "offboard" and not spec.manual and not spec.abort:
+                await self.boundary.leave_offboard(f"{previous} → {name}")
+            for action in spec.entry:
+                try:
+                    await ACTIONS[action].fn(self)
+                except CommandRefused as e:
+                    self._events.write(self._clock.now_s(), "command", name=action, result="refused", error=str(e))
+                    return
+                except VehicleError as e:
+                    self._events.write(self._clock.now_s(), "command", name=action, result=e.result, error=str(e))
+                    if not spec.abort and self.state == name:
+                        self._enter(self.table.abort_state, f"{action} failed in {name}: {e}")
+                    return
+                self._events.write(self._clock.now_s(), "command", name=action, result="ok")
+        except asyncio.CancelledError:
+            self._events.write(self._clock.now_s(), "run", event="entry_cancelled", state=name)
+            raise

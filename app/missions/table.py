@@ -4,7 +4,9 @@ A table has ``mission`` (name), ``initial`` (state), ``params`` (``MissionParams
 
     control:     none | autopilot | offboard   (autopilot/offboard = flying: the mission commands it)
     entry:       [action, ...]                  run in order on entry
-    transitions: [{when: guard, to: STATE}]     first true guard wins, checked every tick
+    transitions: [{when: guard, to: STATE}]     first true guard wins, checked every tick; a flying state
+                                                needs abort_requested, link_lost, position_lost and
+                                                setpoints_failing (``guards.LINK_GUARDS``)
     timeout_s / on_timeout                      required for every flying state and for MANUAL
     terminal:    completed | aborted | failed | pilot   (the run's outcome; no transitions)
     manual: true                                the state the runner enters when the pilot takes over
@@ -23,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.errors import MissionTableError
 from app.missions.actions import ACTIONS
-from app.missions.guards import GUARDS
+from app.missions.guards import GUARDS, LINK_GUARDS
 from app.missions.params import MissionParams
 from app.settings import format_validation_error, load_yaml
 
@@ -175,6 +177,12 @@ def validate_table(table: MissionTable, source: str) -> None:
             exits = [t.to for t in s.transitions] + [s.on_timeout]
             if not any(e is not None and states[e].abort for e in exits):
                 fail(base, f"flying state has no way to ABORT: add a transition or on_timeout to {aborts[0]!r}")
+            missing = [g for g in LINK_GUARDS if g not in {t.when for t in s.transitions}]
+            if missing:
+                fail(f"{base}.transitions", f"a flying state needs the guards {', '.join(missing)}")
+        for i, t in enumerate(s.transitions):
+            if t.when == "abort_requested" and not states[t.to].abort:
+                fail(f"{base}.transitions[{i}].to", f"abort_requested must lead to the abort state {aborts[0]!r}")
 
     # Reachability: from the initial state along transitions, timeouts and resumes; the manual state
     # is reachable from every flying state (the pilot can take over anywhere).

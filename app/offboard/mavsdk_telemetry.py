@@ -14,15 +14,20 @@ What it does differently per autopilot (reference notes §2 and §5):
   autopilot took them, not when they arrived (``app.offboard.timesync``): a busy companion computer delays
   them, and the guidance, the tracking figures and the state history want where the vehicle *was* then.
   An autopilot clock that does not run in real time (PX4 SITL in lockstep) is detected; its samples keep
-  their arrival time.
+  their arrival time;
+- every sample is stamped when it *arrived*, in MAVSDK's callback thread (``stamped``), not when the event
+  loop got round to reading it: a backlog of flight-mode or armed samples does not read as fresh;
+- the autopilot's HEARTBEAT is followed on its own (``heartbeat_t_s``), so a lost link shows as an ageing
+  heartbeat; a stream whose subscription ends is logged (``stream_ended``) and then ages into the guards.
 """
 
 from __future__ import annotations
 
 import asyncio
+import functools
 import json
 import math
-from collections.abc import Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import replace
 from typing import Any
 
@@ -61,6 +66,29 @@ def _finite(*xs: float) -> bool:
     return all(x is not None and math.isfinite(x) for x in xs)
 
 
+async def stamped(
+    subscribe: Callable[[Callable[[Any, Any], None]], Any], unsubscribe: Callable[[Any], None]
+) -> AsyncIterator[tuple[Any, float]]:
+    """A MAVSDK subscription (the synchronous plugin's ``subscribe_x``/``unsubscribe_x``) as ``(item, t_s)``.
+
+    ``t_s`` is the loop clock read in MAVSDK's callback thread as the item arrives (``loop.time()`` is the
+    monotonic clock and may be read from any thread), so items that wait in the queue keep their arrival
+    time. The asyncio wrappers stamp nothing; their queue is unbounded, like this one.
+    """
+    loop = asyncio.get_running_loop()
+    queue: asyncio.Queue[tuple[Any, float]] = asyncio.Queue()
+
+    def callback(data: Any, _user_data: Any) -> None:
+        loop.call_soon_threadsafe(queue.put_nowait, (data, loop.time()))
+
+    handle = subscribe(callback)
+    try:
+        while True:
+            yield await queue.get()
+    finally:
+        unsubscribe(handle)
+
+
 class MavsdkTelemetry:
     """Every stream the app uses, consumed into a ``TelemetrySnapshot`` (``run`` until cancelled)."""
 
@@ -74,6 +102,8 @@ class MavsdkTelemetry:
         self._tel_settings = settings
         self._telemetry = TelemetryAsync(system)
         self._direct = MavlinkDirectAsync(system)
+        self._tel_sync = self._telemetry._plugin  # the same plugins, subscribed with our own stamping callback
+        self._direct_sync = self._direct._plugin
         self._snapshot = TelemetrySnapshot()
         self._global_pair: tuple[Any, Vec3] | None = None
         self._home_global: Any = None
@@ -82,6 +112,7 @@ class MavsdkTelemetry:
         self._position_clock = RemoteClock()
         self._attitude_clock = RemoteClock()
         self._sample_listeners: list[SampleListener] = []
+        self._sysid: int | None = None
 
     def snapshot(self) -> TelemetrySnapshot:
         return self._snapshot
@@ -91,17 +122,41 @@ class MavsdkTelemetry:
 
     async def run(self) -> None:
         """Request rates, then consume every stream until cancelled."""
+        streams: list[tuple[str, Callable[[], Awaitable[None]]]] = [
+            ("position", self._consume_position),
+            ("attitude", self._consume_attitude),
+            ("flight_mode", self._consume_flight_mode),
+            ("armed", self._consume_armed),
+            ("landed_state", self._consume_landed),
+            ("home", self._consume_home),
+            ("global_position", self._consume_global),
+            ("heartbeat", self._consume_heartbeat),
+        ]
+        if self._autopilot is Autopilot.PX4 and self._tel_settings.mode_rate_hz > 0.0:
+            streams.append(("current_mode", self._consume_current_mode))
         async with asyncio.TaskGroup() as tg:
             tg.create_task(self._request_rates(), name="vehicle.rates")
-            tg.create_task(self._consume_position(), name="vehicle.position")
-            tg.create_task(self._consume_attitude(), name="vehicle.attitude")
-            tg.create_task(self._consume_flight_mode(), name="vehicle.flight_mode")
-            tg.create_task(self._consume_armed(), name="vehicle.armed")
-            tg.create_task(self._consume_landed(), name="vehicle.landed_state")
-            tg.create_task(self._consume_home(), name="vehicle.home")
-            tg.create_task(self._consume_global(), name="vehicle.global_position")
-            if self._autopilot is Autopilot.PX4 and self._tel_settings.mode_rate_hz > 0.0:
-                tg.create_task(self._consume_current_mode(), name="vehicle.current_mode")
+            for name, consume in streams:
+                tg.create_task(self._watch_stream(name, consume), name=f"vehicle.{name}")
+
+    async def _watch_stream(self, name: str, consume: Callable[[], Awaitable[None]]) -> None:
+        """Run one consumer; if its subscription ever ends, say so (its samples then age into the guards)."""
+        await consume()
+        self._events.write(self._clock.now_s(), "vehicle", event="stream_ended", stream=name)
+
+    def _direct_messages(self, name: str) -> AsyncIterator[tuple[MavlinkMessage, float]]:
+        d = self._direct_sync
+        return stamped(functools.partial(d.subscribe_message, name), d.unsubscribe_message)
+
+    async def _consume_heartbeat(self) -> None:
+        async for msg, received_s in self._direct_messages("HEARTBEAT"):
+            if msg.component_id == AUTOPILOT_COMPONENT_ID and msg.system_id == await self._system_id():
+                self._update(heartbeat_t_s=received_s)
+
+    async def _system_id(self) -> int:
+        if self._sysid is None:
+            self._sysid = int(await self._system.get_system_id())
+        return self._sysid
 
     async def _request_rates(self) -> None:
         t = self._tel_settings
@@ -126,8 +181,7 @@ class MavsdkTelemetry:
 
     async def _consume_position(self) -> None:
         """LOCAL_POSITION_NED through MAVLink-direct: MAVSDK's PositionVelocityNed drops ``time_boot_ms``."""
-        async for msg in self._direct.subscribe_message("LOCAL_POSITION_NED"):
-            received_s = self._clock.now_s()
+        async for msg, received_s in self._direct_messages("LOCAL_POSITION_NED"):
             if msg.component_id != AUTOPILOT_COMPONENT_ID:
                 continue
             try:
@@ -143,8 +197,8 @@ class MavsdkTelemetry:
             self._publish(PositionVelocityNed(t_s, p, v), received_s)
 
     async def _consume_attitude(self) -> None:
-        async for a in self._telemetry.subscribe_attitude_euler():
-            received_s = self._clock.now_s()
+        t = self._tel_sync
+        async for a, received_s in stamped(t.subscribe_attitude_euler, t.unsubscribe_attitude_euler):
             t_s = self._attitude_clock.stamp(a.timestamp_us / 1e6, received_s) if a.timestamp_us > 0 else received_s
             rpy = (math.radians(a.roll_deg), math.radians(a.pitch_deg), math.radians(a.yaw_deg))
             self._publish(AttitudeEuler(t_s, *rpy), received_s)
@@ -169,11 +223,13 @@ class MavsdkTelemetry:
         return self._position_clock.summary("position") | self._attitude_clock.summary("attitude")
 
     async def _consume_flight_mode(self) -> None:
-        async for m in self._telemetry.subscribe_flight_mode():
-            t = self._current_mode_t
-            if t is not None and self._clock.now_s() - t < CURRENT_MODE_FRESH_S:
+        t = self._tel_sync
+        async for m, received_s in stamped(t.subscribe_flight_mode, t.unsubscribe_flight_mode):
+            last = self._current_mode_t
+            if last is not None and received_s - last < CURRENT_MODE_FRESH_S:
                 continue
-            self._set_flight_mode(FlightMode[m.name] if m.name in FlightMode.__members__ else FlightMode.UNKNOWN)
+            mode = FlightMode[m.name] if m.name in FlightMode.__members__ else FlightMode.UNKNOWN
+            self._set_flight_mode(mode, received_s)
 
     async def _consume_current_mode(self) -> None:
         """PX4's CURRENT_MODE: asked for at ``mode_rate_hz``; refused (PX4 < 1.15) → the heartbeat alone."""
@@ -199,32 +255,34 @@ class MavsdkTelemetry:
             )
             return
         self._events.write(self._clock.now_s(), "vehicle", event="rate", stream="current_mode", rate_hz=rate_hz)
-        async for msg in direct.subscribe_message("CURRENT_MODE"):
+        async for msg, received_s in self._direct_messages("CURRENT_MODE"):
             try:
                 custom_mode = int(json.loads(msg.fields_json)["custom_mode"])
             except (KeyError, TypeError, ValueError):
                 continue
-            self._current_mode_t = self._clock.now_s()
-            self._set_flight_mode(px4_flight_mode(custom_mode))
+            self._current_mode_t = received_s
+            self._set_flight_mode(px4_flight_mode(custom_mode), received_s)
 
-    def _set_flight_mode(self, mode: FlightMode) -> None:
-        """A fresh flight-mode sample, from HEARTBEAT or CURRENT_MODE (whichever comes first)."""
+    def _set_flight_mode(self, mode: FlightMode, received_s: float) -> None:
+        """A flight-mode sample, from HEARTBEAT or CURRENT_MODE (whichever comes first), as it arrived."""
         previous = self._snapshot.mode()
-        self._update(flight_mode=Stamped(self._clock.now_s(), mode))
+        self._update(flight_mode=Stamped(received_s, mode))
         if mode != previous:
-            self._events.write(self._clock.now_s(), "vehicle", event="flight_mode", mode=mode.value)
+            self._events.write(received_s, "vehicle", event="flight_mode", mode=mode.value)
 
     async def _consume_armed(self) -> None:
-        async for armed in self._telemetry.subscribe_armed():
+        t = self._tel_sync
+        async for armed, received_s in stamped(t.subscribe_armed, t.unsubscribe_armed):
             previous = self._snapshot.armed
-            self._update(armed=Stamped(self._clock.now_s(), bool(armed)))
+            self._update(armed=Stamped(received_s, bool(armed)))
             if previous is None or previous.value != bool(armed):
-                self._events.write(self._clock.now_s(), "vehicle", event="armed", armed=bool(armed))
+                self._events.write(received_s, "vehicle", event="armed", armed=bool(armed))
 
     async def _consume_landed(self) -> None:
-        async for s in self._telemetry.subscribe_landed_state():
+        t = self._tel_sync
+        async for s, received_s in stamped(t.subscribe_landed_state, t.unsubscribe_landed_state):
             state = LandedState[s.name] if s.name in LandedState.__members__ else LandedState.UNKNOWN
-            self._update(landed_state=Stamped(self._clock.now_s(), state))
+            self._update(landed_state=Stamped(received_s, state))
 
     async def _consume_home(self) -> None:
         async for h in self._telemetry.subscribe_home():

@@ -3,14 +3,21 @@
 Only this module and ``app.offboard.mavsdk_telemetry`` (the streams) import mavsdk; its errors become
 ``VehicleError`` here. Commands differ per autopilot only through MAVSDK's own mapping (reference notes
 §2 and §5): offboard is GUIDED on ArduPilot and HOLD is BRAKE. Arming is retried while pre-arm checks run.
+
+Setpoints go out on a dedicated one-thread executor with a timeout (``connection.setpoint_timeout_s``), never
+queued behind a slow command in the default executor. The setpoint watchdog runs in a thread of its own
+(``WatchdogThread``) and, when it fires, calls MAVSDK's synchronous offboard plugin from that thread: the
+event loop is not needed to stop the vehicle.
 """
 
 from __future__ import annotations
 
+import asyncio
 import math
 import sys
 import threading
 from collections.abc import AsyncIterator, Awaitable
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
@@ -26,6 +33,7 @@ from app.errors import VehicleConnectionError, VehicleError
 from app.eventlog import EventLog
 from app.messages import Autopilot, TelemetrySnapshot, Vec3
 from app.offboard.mavsdk_telemetry import MavsdkTelemetry, SampleListener
+from app.offboard.watchdog import SetpointWatchdog, WatchdogThread
 from app.settings import ConnectionSettings, TelemetrySettings
 
 ARM_RETRY_PERIOD_S = 1.0
@@ -73,7 +81,18 @@ class MavsdkVehicle:
         self._conn = conn
         self._action = ActionAsync(system)
         self._offboard = OffboardAsync(system)
+        # The same plugin instance, called synchronously (a second Offboard plugin would re-send on its own).
+        self._offboard_sync = self._offboard._plugin
         self._streams = MavsdkTelemetry(system, autopilot, clock, events, tel)
+        self._setpoint_executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mavsdk.setpoints")
+        self._watchdog_threads: list[WatchdogThread] = []
+
+    def close(self) -> None:
+        """Stop the watchdog threads and the setpoint executor (before MAVSDK is destroyed)."""
+        for w in self._watchdog_threads:
+            w.stop()
+        self._watchdog_threads.clear()
+        self._setpoint_executor.shutdown(wait=False, cancel_futures=True)
 
     # ---- construction -------------------------------------------------------------------------
 
@@ -99,7 +118,11 @@ class MavsdkVehicle:
                 kind, Autopilot.UNKNOWN
             )
             events.write(clock.now_s(), "vehicle", event="connected", url=url, autopilot=autopilot.value)
-            yield cls(mavsdk, system, autopilot, clock, events, conn, tel)
+            vehicle = cls(mavsdk, system, autopilot, clock, events, conn, tel)
+            try:
+                yield vehicle
+            finally:
+                vehicle.close()
 
     @property
     def autopilot(self) -> Autopilot:
@@ -154,8 +177,32 @@ class MavsdkVehicle:
         await self._call("offboard_start", self._offboard.start())
 
     async def set_velocity_ned(self, vel_ned_mps: Vec3, yaw_rad: float) -> None:
+        """On the setpoint executor, within ``setpoint_timeout_s`` (else ``VehicleError`` TIMEOUT)."""
         sp = VelocityNedYaw(vel_ned_mps[0], vel_ned_mps[1], vel_ned_mps[2], math.degrees(yaw_rad))
-        await self._call("set_velocity_ned", self._offboard.set_velocity_ned(sp))
+        loop = asyncio.get_running_loop()
+        try:
+            async with asyncio.timeout(self._conn.setpoint_timeout_s):
+                await self._call(
+                    "set_velocity_ned",
+                    loop.run_in_executor(self._setpoint_executor, self._offboard_sync.set_velocity_ned, sp),
+                )
+        except TimeoutError as e:
+            raise VehicleError(
+                "set_velocity_ned", "TIMEOUT", f"not sent within {self._conn.setpoint_timeout_s} s"
+            ) from e
+
+    def zero_velocity_now(self, yaw_rad: float) -> None:
+        """From the watchdog's thread: MAVSDK re-sends zero velocity from now on (no event loop involved)."""
+        try:
+            self._offboard_sync.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 0.0, math.degrees(yaw_rad)))
+        except (OffboardError, MavsdkError, RuntimeError) as e:
+            sys.stderr.write(f"seapick: watchdog could not zero the setpoint: {e}\n")
+
+    def attach_watchdog(self, watchdog: SetpointWatchdog) -> None:
+        """Poll ``watchdog`` in a daemon thread on the loop's clock (monotonic), read without the loop."""
+        thread = WatchdogThread(watchdog, asyncio.get_running_loop().time)
+        self._watchdog_threads.append(thread)
+        thread.start()
 
     async def hold(self) -> None:
         await self._call("hold", self._action.hold())

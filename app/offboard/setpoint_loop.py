@@ -1,30 +1,29 @@
 """The offboard setpoint loop: fixed rate, never silent while the mission has control.
 
 Modes:
-- ``GUIDE``: every period, constant-bearing guidance toward the target source (or, with none, the
-  position where guidance was engaged), through the envelope, to ``set_velocity_ned``. Stale position
-  telemetry → zero velocity (hold) until it is fresh again.
+- ``GUIDE``: every period, constant-bearing guidance toward the target source; with no source, or when
+  the source has no fresh estimate, it holds the position where the target was lost (a position hold,
+  not zero velocity, which would drift in wind). Stale position telemetry → zero velocity until it is
+  fresh again (the mission's ``position_lost`` guard acts after a while).
 - ``STANDBY``: the pilot has control (PX4): zero-velocity setpoints at a low rate, only so the pilot can
   hand back by selecting OFFBOARD (PX4 refuses OFFBOARD without a setpoint stream; it ignores the stream
   in every other mode). No mode is ever commanded from here.
 - ``OFF``: sends nothing.
-Every decision is written to the event log.
+Everything goes out through ``VehicleBoundary`` (authority, envelope, finiteness, watchdog); every
+decision is written to the event log.
 """
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from enum import StrEnum
 from typing import Protocol
 
 from app.clock import Clock, sleep_until
-from app.errors import VehicleError
 from app.eventlog import EventLog
 from app.messages import PositionVelocityNed, TargetState, Vec3, norm, sub
-from app.offboard.envelope import EnvelopeLimits, apply_envelope
+from app.offboard.boundary import VehicleBoundary
 from app.offboard.guidance import ConstantBearingParams, constant_bearing_velocity
-from app.offboard.vehicle import Vehicle
 from app.stats import percentile
 
 
@@ -65,43 +64,47 @@ class FixedPoint:
 class SetpointLoop:
     def __init__(
         self,
-        vehicle: Vehicle,
+        boundary: VehicleBoundary,
         clock: Clock,
         events: EventLog,
         guidance: ConstantBearingParams,
-        limits: EnvelopeLimits,
         rate_hz: float,
         standby_rate_hz: float,
         position_stale_s: float,
     ) -> None:
-        self._vehicle = vehicle
+        self._boundary = boundary
         self._clock = clock
         self._events = events
         self._guidance = guidance
-        self._limits = limits
         self._period_s = 1.0 / rate_hz
         self._standby_period_s = 1.0 / standby_rate_hz if standby_rate_hz > 0 else 0.0
         self._stale_s = position_stale_s
         self.mode = LoopMode.OFF
         self._source: TargetSource | None = None
+        self._hold: FixedPoint | None = None  # where we hold while the source has no estimate
         self._yaw_rad = 0.0
         self._allow_below_min = False
         self._last_sample_t_s: float | None = None
+        self._last_err_m: float | None = None
         self._next_standby_s = 0.0
         self.sent = 0
-        self.send_errors = 0
         self._last_send_s: float | None = None
         self.send_intervals_s: deque[float] = deque(maxlen=100_000)  # between guidance setpoints
+
+    @property
+    def period_s(self) -> float:
+        return self._period_s
 
     # ---- control (called by the mission runner) -------------------------------------------------
 
     def engage(self, source: TargetSource | None, *, allow_below_min: bool = False) -> None:
         """Start guiding toward ``source``; ``None`` holds the current position."""
-        tel = self._vehicle.telemetry()
-        if source is None and tel.pos_vel is not None:
-            source = FixedPoint("hold", tel.pos_vel.pos_ned_m)
+        tel = self._boundary.telemetry()
         if self.mode != LoopMode.GUIDE and tel.attitude is not None:
             self._yaw_rad = tel.attitude.yaw_rad
+        self._hold = None
+        if source is None and tel.pos_vel is not None:
+            source = self._hold = FixedPoint("hold", tel.pos_vel.pos_ned_m)
         self._source = source
         self._allow_below_min = allow_below_min
         self.mode = LoopMode.GUIDE
@@ -110,14 +113,14 @@ class SetpointLoop:
     def standby(self) -> None:
         self.mode = LoopMode.STANDBY if self._standby_period_s > 0 else LoopMode.OFF
         self._last_send_s = None
-        self._source = None
+        self._source = self._hold = None
         self._events.write(self._clock.now_s(), "setpoint", decision=self.mode.value.lower())
 
     def disengage(self) -> None:
         if self.mode != LoopMode.OFF:
             self._events.write(self._clock.now_s(), "setpoint", decision="off")
         self.mode = LoopMode.OFF
-        self._source = None
+        self._source = self._hold = None
         self._last_send_s = None
 
     @property
@@ -137,28 +140,47 @@ class SetpointLoop:
             await sleep_until(self._clock, next_s)
 
     async def tick(self, now_s: float) -> None:
-        if self.mode == LoopMode.GUIDE:
-            vel, yaw = self._guide(now_s)
-            await self._send(vel, yaw)
+        if self.mode == LoopMode.GUIDE and self._boundary.accepts_guidance:
+            desired, why = self._guide(now_s)
+            clamped = await self._boundary.send_velocity(desired, self._yaw_rad, allow_below_min=self._allow_below_min)
+            if clamped is None:
+                return
+            self._count_sent(now_s)
+            self._events.write(
+                now_s,
+                "setpoint",
+                decision=why,
+                source=self._source.name if self._source else None,
+                vel=list(clamped.vel_ned_mps),
+                desired=list(desired),
+                limits=list(clamped.limits),
+                err_m=self._last_err_m,
+            )
         elif self.mode == LoopMode.STANDBY and now_s >= self._next_standby_s:
             self._next_standby_s = now_s + self._standby_period_s
-            await self._send((0.0, 0.0, 0.0), self._yaw_rad)
+            await self._boundary.send_standby()
 
-    def _guide(self, now_s: float) -> tuple[Vec3, float]:
-        tel = self._vehicle.telemetry()
+    def _guide(self, now_s: float) -> tuple[Vec3, str]:
+        """The desired velocity (before the envelope) and why."""
+        self._last_err_m = None
+        tel = self._boundary.telemetry()
         pv = tel.pos_vel
         if pv is None or now_s - pv.t_s > self._stale_s:
-            age = None if pv is None else now_s - pv.t_s
-            self._events.write(now_s, "setpoint", decision="stale_position_hold", age_s=age, vel=[0.0, 0.0, 0.0])
-            return (0.0, 0.0, 0.0), self._yaw_rad
+            return (0.0, 0.0, 0.0), "stale_position_zero"
         source = self._source
         if source is not None and pv.t_s != self._last_sample_t_s:
             self._last_sample_t_s = pv.t_s
             source.observe(pv)
         target = source.target_at(now_s) if source is not None else None
+        why = "guide"
         if target is None:
-            self._events.write(now_s, "setpoint", decision="no_target_hold", vel=[0.0, 0.0, 0.0])
-            return (0.0, 0.0, 0.0), self._yaw_rad
+            # No fresh estimate: hold the position where it went missing (guidance to a fixed point).
+            if self._hold is None:
+                self._hold = FixedPoint("hold", pv.pos_ned_m)
+                self._events.write(now_s, "setpoint", decision="no_target_hold", hold_ned_m=list(pv.pos_ned_m))
+            target, why = self._hold.target_at(now_s), "hold"
+        elif self._hold is not None and self._hold is not source:
+            self._hold = None
         # Guidance on the position predicted to now (telemetry is a few ms old).
         dt_s = now_s - pv.t_s
         pos_now = (
@@ -166,22 +188,17 @@ class SetpointLoop:
             pv.pos_ned_m[1] + pv.vel_ned_mps[1] * dt_s,
             pv.pos_ned_m[2] + pv.vel_ned_mps[2] * dt_s,
         )
+        self._last_err_m = norm(sub(pos_now, target.pos_ned_m))
         desired = constant_bearing_velocity(
             pos_now, target.pos_ned_m, target.vel_ned_mps, self._guidance, target.acc_ned_mps2
         )
-        home = tel.home_ned_m or (0.0, 0.0, 0.0)
-        clamped = apply_envelope(desired, pv.pos_ned_m, home, self._limits, allow_below_min=self._allow_below_min)
-        self._events.write(
-            now_s,
-            "setpoint",
-            decision="guide",
-            source=source.name if source else None,
-            vel=list(clamped.vel_ned_mps),
-            desired=list(desired),
-            limits=list(clamped.limits),
-            err_m=norm(sub(pos_now, target.pos_ned_m)),
-        )
-        return clamped.vel_ned_mps, self._yaw_rad
+        return desired, why
+
+    def _count_sent(self, now_s: float) -> None:
+        self.sent += 1
+        if self._last_send_s is not None:
+            self.send_intervals_s.append(now_s - self._last_send_s)
+        self._last_send_s = now_s
 
     def interval_summary(self) -> dict[str, float | None]:
         """Spacing of the guidance setpoints actually sent (the loop's period plus whatever delayed it)."""
@@ -191,18 +208,3 @@ class SetpointLoop:
             "setpoint_interval_p95_s": percentile(xs, 0.95),
             "setpoint_interval_max_s": xs[-1] if xs else None,
         }
-
-    async def _send(self, vel: Vec3, yaw_rad: float) -> None:
-        if not all(math.isfinite(v) for v in vel):
-            vel = (0.0, 0.0, 0.0)
-        try:
-            await self._vehicle.set_velocity_ned(vel, yaw_rad)
-            self.sent += 1
-            now_s = self._clock.now_s()
-            if self.mode == LoopMode.GUIDE:
-                if self._last_send_s is not None:
-                    self.send_intervals_s.append(now_s - self._last_send_s)
-                self._last_send_s = now_s
-        except VehicleError as e:
-            self.send_errors += 1
-            self._events.write(self._clock.now_s(), "setpoint", decision="send_failed", error=str(e))

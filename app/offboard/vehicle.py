@@ -1,11 +1,13 @@
 """The one interface the flight code has to a vehicle.
 
-Implemented by the MAVSDK adapter (``app.offboard.mavsdk_vehicle``) for PX4 and ArduPilot, and by the
-in-process simulator (``sim.inproc``) for virtual-time tests. Commands raise ``VehicleError`` when the
-autopilot refuses them. Telemetry is a snapshot of the latest sample of every stream, each stamped on the
-loop clock: position and attitude with the time the autopilot took them (its ``time_boot_ms`` mapped onto
-the loop clock, ``app.offboard.timesync``) once that clock is seen to run in real time, the rest with the
-time they were received.
+Only ``app.offboard.boundary.VehicleBoundary`` calls the commands and setpoints; it applies authority,
+the envelope and offboard ownership first. Implemented by the MAVSDK adapter
+(``app.offboard.mavsdk_vehicle``) for PX4 and ArduPilot, and by the in-process simulator (``sim.inproc``)
+for virtual-time tests. Commands raise ``VehicleError`` when the autopilot refuses them. Telemetry is a
+snapshot of the latest sample of every stream, each stamped on the loop clock: position and attitude with
+the time the autopilot took them (its ``time_boot_ms`` mapped onto the loop clock,
+``app.offboard.timesync``) once that clock is seen to run in real time, the rest with the time they were
+received (in MAVSDK's callback thread, not when the app read them).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 from typing import Protocol
 
 from app.messages import Autopilot, TelemetrySnapshot, Vec3
+from app.offboard.watchdog import SetpointWatchdog
 
 
 class Vehicle(Protocol):
@@ -52,6 +55,15 @@ class Vehicle(Protocol):
 
     async def set_velocity_ned(self, vel_ned_mps: Vec3, yaw_rad: float) -> None:
         """One velocity setpoint in the local NED frame, yaw absolute."""
+        ...
+
+    def zero_velocity_now(self, yaw_rad: float) -> None:
+        """From any thread, without the event loop: make the setpoint being re-sent zero velocity."""
+        ...
+
+    def attach_watchdog(self, watchdog: SetpointWatchdog) -> None:
+        """Poll ``watchdog`` off the event loop (MAVSDK: a thread on the monotonic clock; the in-process
+        simulator: its physics steps), until the vehicle is closed."""
         ...
 
     async def hold(self) -> None:

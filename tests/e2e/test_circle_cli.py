@@ -68,5 +68,5 @@ def test_invalid_mission_file_is_refused_before_connecting(tmp_path):
         cwd=ROOT, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert proc.returncode == 2
-    assert "states.TRACK.transitions[2].when: unknown guard 'laps_done'" in proc.stderr
+    assert "states.TRACK.transitions[4].when: unknown guard 'laps_done'" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1

@@ -105,8 +105,8 @@ async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop
     """Real MAVSDK on real UDP: climbing at ~1.5 m/s, the app's loop blocked 150 ms every half second.
 
     Each position sample is compared with the simulator's truth at the sample's stamp (the sim's clock is
-    time.monotonic, as is the asyncio loop's). With receipt stamps, samples queued during a stall are
-    placed up to 150 ms late — over 10 cm at this climb rate.
+    time.monotonic, as is the asyncio loop's). Stamped when the loop reads them, samples queued during a
+    stall would be placed up to 150 ms late — over 10 cm at this climb rate.
     """
     from app.offboard.mavsdk_vehicle import MavsdkVehicle
 
@@ -115,11 +115,11 @@ async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop
     config = SimConfig(target=("127.0.0.1", port), pilot_port=None, wind=WindConfig.off(), state_log=str(truth_log))
     sim = SimAutopilot(config)
     clock = LoopClock()
-    seen: list[tuple[float, float, float]] = []  # every position sample: (stamp, receipt, down)
+    seen: list[tuple[float, float, float]] = []  # every position sample: (stamp, read by the loop, down)
 
     def record(sample: PositionVelocityNed | AttitudeEuler, received_s: float) -> None:
         if isinstance(sample, PositionVelocityNed):
-            seen.append((sample.t_s, received_s, sample.pos_ned_m[2]))
+            seen.append((sample.t_s, clock.now_s(), sample.pos_ned_m[2]))
 
     def busy(dt_s: float) -> None:
         """The event loop is busy elsewhere (a slow callback): nothing of ours runs meanwhile."""
@@ -156,7 +156,8 @@ async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop
     climbing = [s for s in seen if -7.0 < s[2] < -1.0 and t_truth[0] < s[1] < t_truth[-1]]
     assert len(climbing) > 100
     err_stamp = [abs(d - np.interp(t, t_truth, d_truth)) for t, _, d in climbing]
-    err_receipt = [abs(d - np.interp(r, t_truth, d_truth)) for _, r, d in climbing]
+    err_read = [abs(d - np.interp(r, t_truth, d_truth)) for _, r, d in climbing]
     assert max(err_stamp) < 0.02
-    assert max(err_receipt) > 0.10  # the stalls were real: receipt stamps are far off
-    assert stats["position_latency_max_s"] is not None and stats["position_latency_max_s"] > 0.1
+    assert max(err_read) > 0.10  # the stalls were real: stamped when read, samples are far off
+    # Received in MAVSDK's thread, not when the loop got to them: the stalls do not show as link latency.
+    print(f"position latency p95 {stats['position_latency_p95_s']} s, max {stats['position_latency_max_s']} s")
