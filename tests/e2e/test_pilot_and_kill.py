@@ -25,6 +25,10 @@ from tests.e2e.cliutil import (
 pytestmark = pytest.mark.e2e
 
 
+def is_zero(setpoint):
+    return all(v == 0.0 for v in setpoint["vel_ned_mps"])
+
+
 @pytest.fixture
 def sim(tmp_path):
     port, pilot_port = free_udp_port(), free_udp_port()
@@ -77,6 +81,15 @@ def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tm
         if e.get("event") == "command" and e.get("source") == "link" and e["t_wall"] > switch["t_wall"]
     ]
     assert commands == [], commands  # the app sent no command at all while the pilot had control
+    # Setpoints: within the detection window some may still be the guidance's; after it only the zero standby.
+    window_end = switch["t_wall"] + latency_s + 0.1
+    sps = [e for e in read_jsonl(tmp_path / "sim_state.jsonl") if e.get("event") == "setpoint"]
+    in_window = [e for e in sps if switch["t_wall"] < e["t_wall"] <= window_end]
+    after_window = [e for e in sps if e["t_wall"] > window_end]
+    print(f"{sum(not is_zero(e) for e in in_window)} non-zero of {len(in_window)} setpoints in the detection window")
+    assert len(after_window) >= 10 and all(is_zero(e) for e in after_window), [
+        e for e in after_window if not is_zero(e)
+    ][:3]
     print(f"takeover seen by the app {latency_s * 1000:.0f} ms after the pilot's switch")
     assert states(events)[-1]["to"] == "MANUAL"
 
@@ -88,9 +101,21 @@ def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tm
     assert sim_modes(tmp_path)[-1]["mode"] == "OFFBOARD"
 
     # Ctrl-C: ABORT → zero velocity, then HOLD; the run ends "aborted".
+    t_sigint = time.time()
     app.send_signal(signal.SIGINT)
     assert app.wait(timeout=20) == 1
     assert sim_modes(tmp_path)[-1]["mode"] == "HOLD"
+    sim_log = read_jsonl(tmp_path / "sim_state.jsonl")
+    hold = next(
+        e for e in sim_log
+        if e.get("event") == "command" and e.get("source") == "link" and e["t_wall"] > t_sigint
+    )  # fmt: skip
+    assert hold["command"] == "DO_SET_MODE" and hold["mode"] == "HOLD", hold
+    before = [e for e in sim_log if e.get("event") == "setpoint" and t_sigint < e["t_wall"] <= hold["t_wall"]]
+    assert before and is_zero(before[-1]), before[-3:]  # the last setpoint before HOLD is zero velocity
+    zero_run = [e for e in before if e["t_wall"] >= hold["t_wall"] - 0.4]
+    assert len(zero_run) >= 5 and all(is_zero(e) for e in zero_run), zero_run
+    assert any(not is_zero(e) for e in sim_log if e.get("event") == "setpoint" and e["t_wall"] < t_sigint)
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "aborted"
     assert summary["states_visited"][-3:] == ["MANUAL", "TRACK", "ABORT"]
