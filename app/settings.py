@@ -304,12 +304,47 @@ def validate_section(model: type[ModelT], data: dict[str, Any], source: str) -> 
         raise format_validation_error(source, e, model) from e
 
 
+class _DuplicateKey(yaml.YAMLError):
+    def __init__(self, path: str, line: int, first_line: int) -> None:
+        super().__init__(path)
+        self.path, self.line, self.first_line = path, line, first_line
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that refuses a mapping key given twice (plain YAML keeps the last one silently)."""
+
+    def construct_document(self, node: yaml.Node) -> Any:
+        _check_duplicates(node, "")
+        return super().construct_document(node)
+
+
+def _check_duplicates(node: yaml.Node, path: str) -> None:
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[Any, int] = {}
+        for key_node, value_node in node.value:
+            key = key_node.value if isinstance(key_node, yaml.ScalarNode) else id(key_node)
+            child = f"{path}.{key}" if path else str(key)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise _DuplicateKey(child, line, seen[key])
+            seen[key] = line
+            _check_duplicates(value_node, child)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _check_duplicates(item, f"{path}[{i}]")
+
+
 def load_yaml(path: Path) -> dict[str, Any]:
+    """A YAML mapping from ``path``; a duplicate key (at any depth) is an error naming its path and lines."""
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = yaml.load(path.read_text(), Loader=_StrictLoader) or {}
     except FileNotFoundError as e:
         raise ConfigError(str(path), "", "file not found") from e
-    except yaml.YAMLError as e:
+    except OSError as e:
+        raise ConfigError(str(path), "", f"cannot read: {e.strerror or e}") from e
+    except _DuplicateKey as e:
+        raise ConfigError(str(path), e.path, f"duplicate key (line {e.line}, first at line {e.first_line})") from e
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
         raise ConfigError(str(path), "", f"not valid YAML: {e}") from e
     if not isinstance(data, dict):
         raise ConfigError(str(path), "", "top level must be a mapping")

@@ -70,11 +70,32 @@ def test_default_profile_carries_the_thesis_radar_settings():
         ("radar:\n  tx_power: 7\n", "radar.tx_power", "allowed 0..3 level"),
         ("radar_altitude:\n  clutter_alpha: 1.5\n", "radar_altitude.clutter_alpha", "allowed 0.0..1.0 ratio"),
         ("radar:\n  dac_min: 1200\n", "radar", "dac_min (1200) must be below dac_max (1100)"),
+        # A key given twice (YAML would keep the last silently), at any depth:
+        ("guidance:\n  exit_zero_s: 0.5\n  exit_zero_s: 5.0\n", "guidance.exit_zero_s", "line 3, first at line 2"),
+        ("radar: {}\nradar: {tx_power: 1}\n", "radar", "duplicate key (line 2, first at line 1)"),
     ],
 )
-def test_a_bad_radar_field_names_its_path(tmp_path, yaml_text, path, fragment):
+def test_a_bad_field_names_its_path(tmp_path, yaml_text, path, fragment):
     p = tmp_path / "s.yaml"
     p.write_text(yaml_text)
     with pytest.raises(ConfigError) as e:
         load_settings(p)
     assert e.value.path == path and fragment in e.value.message
+
+
+def test_duplicate_state_in_a_mission_is_an_error_naming_it(tmp_path):
+    from pathlib import Path
+
+    from app.missions.table import load_mission
+
+    text = (Path(__file__).resolve().parents[2] / "app/missions/circle.yaml").read_text()
+    f = tmp_path / "dup.yaml"
+    f.write_text(text + "\n  LAND: {terminal: completed}\n")  # a second LAND under states: the last would win
+    with pytest.raises(ConfigError) as e:
+        load_mission(str(f))
+    assert e.value.path == "states.LAND" and "duplicate key" in e.value.message
+    # Keys inside lists of mappings are checked too.
+    f.write_text(text.replace("{when: vehicle_ready, to: TAKEOFF}", "{when: vehicle_ready, to: TAKEOFF, to: LAND}"))
+    with pytest.raises(ConfigError) as e:
+        load_mission(str(f))
+    assert e.value.path == "states.PREFLIGHT.transitions[0].to"

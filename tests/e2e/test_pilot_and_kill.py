@@ -106,11 +106,12 @@ def test_pilot_takeover_is_seen_at_once_never_overridden_and_handback_resumes(tm
     assert app.wait(timeout=20) == 1
     assert sim_modes(tmp_path)[-1]["mode"] == "HOLD"
     sim_log = read_jsonl(tmp_path / "sim_state.jsonl")
-    hold = next(
+    command = next(
         e for e in sim_log
         if e.get("event") == "command" and e.get("source") == "link" and e["t_wall"] > t_sigint
     )  # fmt: skip
-    assert hold["command"] == "DO_SET_MODE" and hold["mode"] == "HOLD", hold
+    hold = next(m for m in sim_modes(tmp_path) if m["t_wall"] > t_sigint)
+    assert command["command"] == "DO_SET_MODE" and hold["mode"] == "HOLD", (command, hold)
     before = [e for e in sim_log if e.get("event") == "setpoint" and t_sigint < e["t_wall"] <= hold["t_wall"]]
     assert before and is_zero(before[-1]), before[-3:]  # the last setpoint before HOLD is zero velocity
     zero_run = [e for e in before if e["t_wall"] >= hold["t_wall"] - 0.4]
