@@ -76,7 +76,9 @@ async def test_px4_flight_offboard_pilot_takeover_stop_and_land() -> None:
         assert result.ok, result.message
         switched_s = asyncio.get_running_loop().time()
         await seen
-        assert asyncio.get_running_loop().time() - switched_s < 1.2
+        seen_s = asyncio.get_running_loop().time() - switched_s
+        print(f"MAVSDK's flight_mode showed POSCTL after {seen_s:.3f} s (1 Hz HEARTBEAT)")
+        assert seen_s < 2.5  # one heartbeat period plus a generous margin for a loaded machine
 
         await c.offboard.stop()
         await mode_is(c, FlightMode.HOLD)
