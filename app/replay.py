@@ -1,5 +1,9 @@
 """``python -m app.replay radar FILE [--json]``: replay a radar recording through the altitude estimator.
 
+Exit status: 0 done; 1 done but the plot could not be written (the figures are still printed); 2 bad
+input (a file that cannot be read or holds no complete frame, an option out of range, a failed
+calibration) — always with one line on stderr.
+
 FILE is a seapick recording (``.x4rec``) or a Novelda ``xethru_datafloat_*.dat`` / ``xethru_baseband_iq_*.dat``
 (see ``app.sensors.x4m03_recording``). Per frame it prints the range and amplitude of the strongest echo
 (after background removal), and the altitude or ``lost``; ``--json`` prints one JSON object instead. A
@@ -19,8 +23,9 @@ import json
 import math
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Literal
+from typing import Literal, NoReturn
 
 import numpy as np
 
@@ -39,14 +44,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def replay_radar(
     recording: Recording, config: RadarAltitudeSettings, calibration_frames: int
-) -> list[AltitudeEstimate]:
-    """Estimates for every frame; raises ValueError with the reason when the calibration fails."""
+) -> tuple[list[AltitudeEstimate], int]:
+    """Estimates for every frame and the number of frames rejected for NaN/inf; raises ValueError with the
+    reason when the calibration fails."""
     frames = list(recording.frames())
     estimator = RadarAltitudeEstimator(config)
     if config.method == "background":
         result = calibrate_background(frames[:calibration_frames], config)
         estimator.calibrate(result)  # ValueError("calibration failed: …") when it did not work
-    return [estimator.update(f) for f in frames]
+    return [estimator.update(f) for f in frames], estimator.rejected_non_finite
 
 
 def _number(x: float | None, digits: int) -> float | None:
@@ -59,7 +65,7 @@ def as_rows(recording: Recording, estimates: list[AltitudeEstimate]) -> list[dic
             "t_s": round(float(t), 4),
             "counter": int(c),
             "range_m": _number(e.range_m, 4),
-            "amplitude": _number(e.amplitude, 6),
+            "amplitude": _number(e.amplitude, 6) if e.range_m is not None else None,
             "altitude_m": _number(e.altitude_m, 4) if e.accepted else None,
             "status": e.status,
         }
@@ -95,60 +101,136 @@ def plot(recording: Recording, estimates: list[AltitudeEstimate], path: Path) ->
     return path
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _in_range(lo: float, hi: float, unit: str, kind: type = float) -> Callable[[str], float]:
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"{text} is outside {lo:g}..{hi:g} {unit}".rstrip())
+        return value
+
+    return parse
+
+
+def _axis(values: list[float]) -> RangeAxis:
+    start_m, bin_m, bins = values
+    if not math.isfinite(start_m) or not -10.0 <= start_m <= 100.0:
+        raise ValueError(f"--axis START_M {start_m:g} is outside -10..100 m")
+    if not (math.isfinite(bin_m) and 0.0 < bin_m <= 1.0):
+        raise ValueError(f"--axis BIN_M {bin_m:g} is outside 0 (exclusive)..1 m")
+    if not (math.isfinite(bins) and bins == int(bins) and 1 <= bins <= 4096):
+        raise ValueError(f"--axis BINS {bins:g} is not a whole number in 1..4096")
+    return RangeAxis(start_m, bin_m, int(bins))
+
+
 def radar_main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="python -m app.replay radar", description=__doc__.split("\n")[0])
-    ap.add_argument("file", type=Path)
+    ap = _OneLineParser(
+        prog="python -m app.replay radar",
+        description=__doc__.split("\n\n", 1)[1],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument("file", type=Path, help="a .x4rec recording or a Novelda xethru_datafloat/baseband_iq .dat file")
     ap.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    ap.add_argument("--calibration-frames", type=int, default=0, help="background map from the first N frames")
-    ap.add_argument("--threshold", type=float, default=RadarAltitudeSettings().threshold_amplitude, help="T_abs")
-    ap.add_argument("--axis", nargs=3, type=float, metavar=("START_M", "BIN_M", "BINS"), help="for datafloat files")
-    ap.add_argument("--fps", type=float, default=DEFAULT_FPS_HZ, help="frame rate of Novelda files, Hz")
+    ap.add_argument(
+        "--calibration-frames",
+        type=_in_range(0, 1e6, "frames", int),
+        default=0,
+        help="background map from the first N frames (0: the adaptive clutter map)",
+    )
+    ap.add_argument(
+        "--threshold",
+        type=_in_range(0.0, 1e3, ""),
+        default=RadarAltitudeSettings().threshold_amplitude,
+        help="T_abs, the absolute amplitude threshold of an echo",
+    )
+    ap.add_argument(
+        "--axis",
+        nargs=3,
+        type=float,
+        metavar=("START_M", "BIN_M", "BINS"),
+        help="range axis of a datafloat file (which holds none): first bin's range, bin length, bin count",
+    )
+    ap.add_argument(
+        "--fps", type=_in_range(0.01, 1000.0, "Hz"), default=DEFAULT_FPS_HZ, help="frame rate of Novelda files, Hz"
+    )
     ap.add_argument("--plot", default=None, help="PNG path ('' for none; default runs/replay/<name>_radar.png)")
     args = ap.parse_args(argv)
-    axis = RangeAxis(args.axis[0], args.axis[1], int(args.axis[2])) if args.axis else None
+    try:
+        axis = _axis(args.axis) if args.axis else None
+    except ValueError as e:
+        ap.error(str(e))
     try:
         recording = read_recording(args.file, axis, args.fps)
     except (AppError, OSError) as e:
         print(f"cannot replay: {e}", file=sys.stderr)
         return 2
+    if len(recording) == 0:
+        print(
+            f"cannot replay: {args.file} holds no complete frame ({recording.truncated_bytes} bytes)", file=sys.stderr
+        )
+        return 2
     method: Literal["background", "clutter_map"] = "background" if args.calibration_frames > 0 else "clutter_map"
     config = RadarAltitudeSettings(method=method, threshold_amplitude=args.threshold)
     try:
-        estimates = replay_radar(recording, config, args.calibration_frames)
+        estimates, rejected = replay_radar(recording, config, args.calibration_frames)
     except ValueError as e:
         print(f"cannot replay: {e}", file=sys.stderr)
         return 2
     rows = as_rows(recording, estimates)
     figure_path = ROOT / "runs" / "replay" / f"{args.file.name}_radar.png" if args.plot is None else Path(args.plot)
-    figure = plot(recording, estimates, figure_path) if str(figure_path) and args.plot != "" else None
+    figure, figure_error = None, None
+    if args.plot != "":
+        try:
+            figure = plot(recording, estimates, figure_path)
+        except OSError as e:
+            figure_error = f"cannot write the plot {figure_path}: {e.strerror or e}"
     summary = {
         "frames": len(rows),
         "tracking": sum(r["status"] == "tracking" for r in rows),
+        "holding": sum(r["status"] == "holding" for r in rows),
         "lost": sum(r["status"] == "lost" for r in rows),
+        "non_finite_frames": rejected,
         "truncated_bytes": recording.truncated_bytes,
     }
+    status = 0 if figure_error is None else 1
     if args.json:
         head = {"file": str(args.file), "kind": recording.kind, "method": method}
         axis_out = {"start_m": recording.axis.start_m, "bin_m": recording.axis.bin_m, "bins": recording.axis.bins}
         print(
             json.dumps({**head, "axis": axis_out, "summary": summary, "figure": figure and str(figure), "frames": rows})
         )
-        return 0
+        if figure_error:
+            print(figure_error, file=sys.stderr)
+        return status
     print(f"{args.file} ({recording.kind}, {recording.axis.bins} bins from {recording.axis.start_m:.4f} m), {method}")
     print(f"{'t_s':>9} {'counter':>8} {'range_m':>8} {'amplitude':>10}  altitude_m")
     for r in rows:
-        altitude = "lost" if r["altitude_m"] is None else f"{r['altitude_m']:.3f}"
-        print(f"{r['t_s']:9.3f} {r['counter']:8d} {r['range_m']:8.3f} {r['amplitude']:10.6f}  {altitude}")
+        altitude = r["status"] if r["altitude_m"] is None else f"{r['altitude_m']:.3f}"
+        echo = "     NaN/inf frame" if r["range_m"] is None else f"{r['range_m']:8.3f} {r['amplitude']:10.6f}"
+        print(f"{r['t_s']:9.3f} {r['counter']:8d} {echo}  {altitude}")
     print(json.dumps(summary))
     if figure:
         print(f"figure: {figure}")
-    return 0
+    if figure_error:
+        print(figure_error, file=sys.stderr)
+    return status
 
 
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
+    if args and args[0] in ("-h", "--help"):
+        print(f"usage: python -m app.replay radar FILE [--json] [options]\n\n{__doc__}")
+        print("python -m app.replay radar --help lists the options.")
+        return 0
     if not args or args[0] != "radar":
-        print("usage: python -m app.replay radar FILE [--json] [options]", file=sys.stderr)
+        print("python -m app.replay: error: the first argument must be 'radar' (--help for more)", file=sys.stderr)
         return 2
     try:
         return radar_main(args[1:])

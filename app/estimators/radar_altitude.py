@@ -21,6 +21,11 @@ reports, not the thesis's approximate formula):
     lever arm o (antenna from the reference point, body FRD):
                                       h = h_a + (R_nb o)_down = h_a − sin θ o_x + sin φ cos θ o_y + cos φ cos θ o_z
     timeout:                          no accepted candidate for ``timeout_s`` → "lost" (search all bins again)
+    edges:                            a maximum in the first or last bin of the axis is not a peak (the echo
+                                      may lie beyond it): never accepted
+    non-finite frames:                a frame with a NaN or inf in any bin is rejected and counted
+                                      (``rejected_non_finite``) and changes nothing — not the clutter map, not
+                                      the track (one bad frame would otherwise poison the map for good)
 
 Both maps work on the complex baseband, not on amplitudes as the thesis did: the static direct path and
 body echoes cancel exactly, while the sea echo, whose phase turns every 2 cm of range, does not. The
@@ -71,9 +76,12 @@ class AltitudeEstimate:
 
 def calibrate_background(frames: Sequence[RadarFrame], config: RadarAltitudeSettings) -> BackgroundCalibration:
     """Average ``frames`` (captured with the sea out of range) into a background map, after checking them."""
-    n = len(frames)
+    finite = [f for f in frames if np.isfinite(f.baseband).all()]  # a NaN/inf frame would poison the mean
+    skipped = len(frames) - len(finite)
+    frames, n = finite, len(finite)
     if n < config.calibration_min_frames:
-        return BackgroundCalibration(False, f"need at least {config.calibration_min_frames} frames, got {n}", n)
+        why = f"need at least {config.calibration_min_frames} frames, got {n}"
+        return BackgroundCalibration(False, why + (f" ({skipped} with NaN/inf skipped)" if skipped else ""), n)
     axis = frames[0].axis
     if any(f.axis != axis for f in frames):
         return BackgroundCalibration(False, "the range axis changed during calibration: configure, then calibrate", n)
@@ -112,6 +120,7 @@ class RadarAltitudeEstimator:
         self._last_range_m: float | None = None
         self._last_altitude_m: float | None = None
         self._last_accept_s: float | None = None
+        self.rejected_non_finite = 0  # frames with a NaN/inf bin, skipped
         if calibration is not None:
             self.calibrate(calibration)
 
@@ -127,6 +136,11 @@ class RadarAltitudeEstimator:
 
     def update(self, frame: RadarFrame, roll_rad: float = 0.0, pitch_rad: float = 0.0) -> AltitudeEstimate:
         c = self.config
+        if not (np.isfinite(frame.baseband).all() and math.isfinite(roll_rad) and math.isfinite(pitch_rad)):
+            self.rejected_non_finite += 1
+            age_s = None if self._last_accept_s is None else frame.t_s - self._last_accept_s
+            status: Status = "holding" if self._last_range_m is not None else "lost"
+            return AltitudeEstimate(frame.t_s, status, self._last_altitude_m, None, 0.0, False, age_s)
         residual = self._residual(frame)
         if residual is None:
             return AltitudeEstimate(frame.t_s, "uncalibrated", None, None, 0.0, False, None)
@@ -148,7 +162,8 @@ class RadarAltitudeEstimator:
         if lo <= hi:
             k = lo + int(np.argmax(amplitude[lo : hi + 1]))
             threshold = max(c.threshold_amplitude, c.noise_factor * float(noise[k] if noise.ndim else noise))
-            if amplitude[k] >= threshold:
+            edge = k == 0 or k == axis.bins - 1  # a maximum at the axis's edge: the echo may lie beyond
+            if amplitude[k] >= threshold and not edge:
                 if c.peak == "leading_edge":
                     range_m = _leading_edge_m(amplitude, k, axis, c.pulse_sigma_m, c.leading_edge_fraction)
                 else:
@@ -158,7 +173,7 @@ class RadarAltitudeEstimator:
                 self._last_accept_s = frame.t_s
                 accepted = True
         age_s = None if self._last_accept_s is None else frame.t_s - self._last_accept_s
-        status: Status = "tracking" if accepted else ("holding" if self._last_range_m is not None else "lost")
+        status = "tracking" if accepted else ("holding" if self._last_range_m is not None else "lost")
         return AltitudeEstimate(
             frame.t_s, status, self._last_altitude_m, strongest_m, float(amplitude[strongest]), accepted, age_s
         )

@@ -20,6 +20,7 @@ the byte offset; a truncated last record (recording cut off) is dropped and coun
 from __future__ import annotations
 
 import json
+import math
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -193,6 +194,8 @@ def _read_baseband_iq(path: Path, data: bytes, fps_hz: float) -> Recording:
     _, bins, bin_m, _, _, offset_m = BASEBAND_RECORD.unpack_from(data)
     if not 0 < bins <= 4096:
         raise RecordingError(path, 0, f"implausible bin count {bins}")
+    if not (math.isfinite(bin_m) and 0.0 < bin_m <= 1.0) or not math.isfinite(offset_m):
+        raise RecordingError(path, 0, f"implausible range axis: bin length {bin_m:g} m, offset {offset_m:g} m")
     size = BASEBAND_RECORD.size + 8 * bins
     count, truncated = divmod(len(data), size)
     layout = [

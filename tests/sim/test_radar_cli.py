@@ -41,20 +41,25 @@ def test_cli_emulator_on_a_pty_answers_ping_and_unplugs_and_replugs(tmp_path: Pa
         assert ready, "the emulator printed no path"
         assert proc.stdout.readline().strip() == str(link)
         assert os.path.realpath(link).startswith("/dev/pts/")
-        with serial.Serial(str(link), 115200) as port:
-            port.reset_input_buffer()
 
-            def pong() -> bytes:
-                port.write(bytes.fromhex("7D 01 AE EA AA EE 7C 7E"))
-                return read_exactly(port, 8)
+        def answers_ping() -> None:
+            with serial.Serial(str(link), 115200) as port:
+                port.reset_input_buffer()
 
-            wait_for(lambda: pong() == bytes.fromhex("7D 01 EA AE EE AA 7C 7E"))  # once READY
+                def pong() -> bytes:
+                    port.write(bytes.fromhex("7D 01 AE EA AA EE 7C 7E"))
+                    return read_exactly(port, 8)
+
+                wait_for(lambda: pong() == bytes.fromhex("7D 01 EA AE EE AA 7C 7E"))  # once READY
+
+        answers_ping()
         proc.send_signal(signal.SIGUSR1)
         assert json.loads(proc.stdout.readline()) == {"plugged": False}
         assert not link.exists()
         proc.send_signal(signal.SIGUSR1)
         assert json.loads(proc.stdout.readline()) == {"plugged": True}
         assert link.exists()
+        answers_ping()  # the replugged device booted again and is READY
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(WAIT_S) == 0
         summary = json.loads(proc.stdout.readline())
