@@ -15,6 +15,8 @@ once ``capacity`` is reached.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from app.errors import AppError
@@ -101,11 +103,15 @@ class StateHistory:
         self._pos_vel = _Ring(capacity, 6)
         self._att = _Ring(capacity, 4)
         self.dropped_out_of_order = 0
+        self.dropped_non_finite = 0
 
     # -- feeding ---------------------------------------------------------------------------------
 
     def add_pos_vel(self, s: PositionVelocityNed) -> bool:
-        """Store a position/velocity sample; False (and counted) when it is not newer than the newest."""
+        """Store a position/velocity sample; False (and counted) when it is not newer than the newest or not finite."""
+        if not all(math.isfinite(v) for v in (s.t_s, *s.pos_ned_m, *s.vel_ned_mps)):
+            self.dropped_non_finite += 1
+            return False
         newest = self._pos_vel.newest_t()
         if newest is not None and s.t_s <= newest:
             self.dropped_out_of_order += 1
@@ -114,7 +120,10 @@ class StateHistory:
         return True
 
     def add_attitude(self, a: AttitudeEuler) -> bool:
-        """Store an attitude sample; False (and counted) when it is not newer than the newest."""
+        """Store an attitude sample; False (and counted) when it is not newer than the newest or not finite."""
+        if not all(math.isfinite(v) for v in (a.t_s, a.roll_rad, a.pitch_rad, a.yaw_rad)):
+            self.dropped_non_finite += 1
+            return False
         newest = self._att.newest_t()
         if newest is not None and a.t_s <= newest:
             self.dropped_out_of_order += 1

@@ -70,7 +70,9 @@ class LinearTargetFilter(ABC):
         self._outliers = 0
         # (checkpoint before the fix, the fix) for fixes inside the replay window, in time order
         self._history: list[tuple[_Checkpoint, TargetObservation]] = []
-        self.counts = {"fused": 0, "outlier": 0, "outlier_escape": 0, "too_late": 0, "init": 0, "late_fused": 0}
+        self.counts = {
+            "fused": 0, "outlier": 0, "outlier_escape": 0, "too_late": 0, "init": 0, "late_fused": 0, "non_finite": 0
+        }  # fmt: skip
 
     # ---- the model ------------------------------------------------------------------------------
 
@@ -105,7 +107,11 @@ class LinearTargetFilter(ABC):
         return self.x is not None
 
     def update(self, obs: TargetObservation) -> UpdateResult:
-        """Fuse one fix at its capture time."""
+        """Fuse one fix at its capture time; a fix with a NaN/inf is rejected and counted, changing nothing."""
+        values = (obs.t_s, *obs.pos_ned_m, *obs.cov_ne_m2[0], *obs.cov_ne_m2[1])
+        if not all(math.isfinite(v) for v in values):
+            self.counts["non_finite"] += 1
+            return UpdateResult(False, None, "non_finite")
         if self.x is not None and obs.t_s < self.t_s:
             return self._fuse_late(obs)
         return self._fuse(obs)

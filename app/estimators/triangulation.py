@@ -90,6 +90,7 @@ class SeaPlaneTriangulator:
     pixel_std_px: float = 0.5
     attitude_std_rad: float = 0.0
     max_off_vertical_rad: float = DEFAULT_MAX_OFF_VERTICAL_RAD
+    rejected: dict[str, int] = field(default_factory=lambda: {"non_finite": 0})  # fixes refused, by reason
 
     @classmethod
     def from_settings(
@@ -172,6 +173,10 @@ class SeaPlaneTriangulator:
         radar_height_m: float,
         height_std_m: float,
     ) -> SeaPlaneFix | None:
+        inputs = (*xy, *state.q_ned_frd, *state.pos_ned_m, radar_height_m, height_std_m)
+        if not all(math.isfinite(float(v)) for v in inputs):
+            self.rejected["non_finite"] += 1
+            return None  # a NaN pixel, attitude, position or height gives no fix (and poisons no filter)
         R_ned_frd = quat_to_matrix(state.q_ned_frd)
         R_ned_cam = R_ned_frd @ self.R_frd_cam  # eq. 4.4
         d = R_ned_cam @ np.array([xy[0], xy[1], 1.0])  # eq. 4.9

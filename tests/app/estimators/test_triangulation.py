@@ -300,3 +300,14 @@ def test_rays_at_or_above_the_horizon_or_too_flat_give_no_fix():
     assert TRI.fix_pixel(0.0, (80, 480), state(roll_deg=70.0), 10.0) is None  # above the horizon
     low_cam = SeaPlaneTriangulator.from_settings(LEVEL_CAM.model_copy(update={"lever_arm_frd_m": (0.0, 0.0, 0.3)}))
     assert low_cam.fix_pixel(0.0, (640, 480), state(), 0.2) is None  # camera 0.3 m under the radar: in the sea
+
+
+def test_a_nan_pixel_height_or_attitude_gives_no_fix_and_is_counted():
+    tri = SeaPlaneTriangulator.from_settings(CAM, radar_arm_frd_m=RADAR_ARM)
+    s = state()
+    assert tri.fix_pixel(0.0, (math.nan, CAM.cy_px), s, 10.0) is None
+    assert tri.fix_pixel(0.0, (CAM.cx_px, CAM.cy_px), s, math.inf) is None
+    bad = VehicleStateNed(0.0, s.pos_ned_m, s.vel_ned_mps, (math.nan, 0.0, 0.0, 1.0))
+    assert tri.fix_pixel(0.0, (CAM.cx_px, CAM.cy_px), bad, 10.0) is None
+    assert tri.rejected["non_finite"] == 3
+    assert tri.fix_pixel(0.0, (CAM.cx_px, CAM.cy_px), s, 10.0) is not None  # and the next good one works
