@@ -25,6 +25,7 @@ import yaml
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
+from app.cli import OneLineParser, number, run_cli
 from app.errors import AppError
 from app.settings import CameraSettings, load_yaml
 
@@ -210,28 +211,33 @@ def write_camera_yaml(path: Path, cal: Calibration) -> dict[str, Any]:
 
 
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="python -m app.calibrate", description=__doc__.split("\n")[0])
+    ap = OneLineParser(prog="python -m app.calibrate", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="what", required=True)
     cam = sub.add_parser("camera", help="intrinsics and distortion from images of a calibration board")
     cam.add_argument("images_dir", type=Path, metavar="IMAGES_DIR")
     cam.add_argument("--board", choices=("chessboard", "charuco"), default="chessboard")
-    cam.add_argument("--cols", type=int, default=10, help="board squares across (inner corners + 1)")
-    cam.add_argument("--rows", type=int, default=7, help="board squares down (inner corners + 1)")
-    cam.add_argument("--square-m", type=float, default=0.025, help="square edge, m")
-    cam.add_argument("--marker-m", type=float, default=None, help="ChArUco marker edge, m (default 0.75 × square)")
+    squares = number(3, 100, "squares", int)
+    edge = number(0.001, 1.0, "m")
+    cam.add_argument("--cols", type=squares, default=10, help="board squares across (inner corners + 1)")
+    cam.add_argument("--rows", type=squares, default=7, help="board squares down (inner corners + 1)")
+    cam.add_argument("--square-m", type=edge, default=0.025, help="square edge, m")
+    cam.add_argument("--marker-m", type=edge, default=None, help="ChArUco marker edge, m (default 0.75 × square)")
     cam.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco: cv2.aruco dictionary name")
     cam.add_argument("--out", type=Path, default=Path("settings/camera.yaml"), help="settings YAML to write")
-    cam.add_argument("--min-views", type=int, default=10, help="refuse with fewer views showing the board")
-    cam.add_argument("--min-coverage", type=float, default=0.5, help="refuse below this fraction of image cells")
-    cam.add_argument("--max-rms-px", type=float, default=1.0, help="refuse above this reprojection RMS, px")
+    cam.add_argument(
+        "--min-views", type=number(3, 10_000, "", int), default=10, help="refuse with fewer views showing the board"
+    )
+    cam.add_argument(
+        "--min-coverage", type=number(0.0, 1.0), default=0.5, help="refuse below this fraction of image cells"
+    )
+    cam.add_argument(
+        "--max-rms-px", type=number(0.01, 100.0, "px"), default=1.0, help="refuse above this reprojection RMS, px"
+    )
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
-    if args.cols < 3 or args.rows < 3 or args.square_m <= 0:
-        print("calibrate: --cols and --rows must be ≥ 3 squares and --square-m > 0", file=sys.stderr)
-        return 2
     if args.board == "charuco" and not hasattr(cv2.aruco, args.dictionary):
         print(f"calibrate: unknown ArUco dictionary {args.dictionary}", file=sys.stderr)
         return 2
@@ -256,4 +262,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m app.calibrate"))

@@ -14,7 +14,6 @@ import asyncio
 import contextlib
 import datetime as dt
 import json
-import math
 import signal
 import socket
 import subprocess
@@ -22,8 +21,9 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
+from app.cli import OneLineParser, number, run_cli
 from app.clock import Clock, LoopClock
 from app.errors import AppError, ConfigError
 from app.eventlog import EventLog
@@ -37,31 +37,12 @@ from app.offboard.vehicle import Vehicle
 from app.settings import Settings, load_settings
 
 SIM_PILOT_PORT = 14580
-
-
-class _OneLineParser(argparse.ArgumentParser):
-    """Bad options get one line on stderr (``prog: error: …``) and exit status 2, not the usage block."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _speed(text: str) -> float:
-    value = float(text)
-    if not (math.isfinite(value) and 0.0 <= value <= 30.0):
-        raise argparse.ArgumentTypeError(f"{text} is outside 0–30 m/s")
-    return value
-
-
-def _port(text: str) -> int:
-    value = int(text)
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"{text} is not a UDP port (0–65535)")
-    return value
+SPEED = number(0.0, 30.0, "m/s")
+UDP_PORT = number(0, 65535, "(UDP port)", int)
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = _OneLineParser(prog="python -m app.main", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog="python -m app.main", description=__doc__.split("\n\n")[0])
     p.add_argument("--mission", required=True, help="mission name (circle) or path to a mission YAML")
     p.add_argument("--settings", type=Path, default=None, help="settings YAML (default settings/default.yaml)")
     p.add_argument("--sim", action="store_true", help="start the simulated PX4 autopilot and fly it over UDP")
@@ -69,11 +50,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=1, help="seed for the simulator (wind gusts)")
     p.add_argument("--run-dir", type=Path, default=None, help="where summary.json and events.jsonl go")
     sim = p.add_argument_group("simulator (with --sim)")
-    sim.add_argument("--wind-mps", type=_speed, default=None, help="mean wind speed, m/s (sim default 5)")
-    sim.add_argument("--gust-mps", type=_speed, default=None, help="gust standard deviation, m/s (sim default 1)")
+    sim.add_argument("--wind-mps", type=SPEED, default=None, help="mean wind speed, m/s (sim default 5)")
+    sim.add_argument("--gust-mps", type=SPEED, default=None, help="gust standard deviation, m/s (sim default 1)")
     sim.add_argument("--no-wind", action="store_true", help="calm air")
     sim.add_argument("--sim-profile", choices=("px4", "ardupilot"), default="px4", help="simulated autopilot")
-    sim.add_argument("--pilot-port", type=_port, default=SIM_PILOT_PORT, help="UDP port for python -m sim.pilot")
+    sim.add_argument(
+        "--pilot-port",
+        type=UDP_PORT,
+        default=SIM_PILOT_PORT,
+        help="UDP port for python -m sim.pilot",
+    )
     args = p.parse_args(argv)
     if args.sim and args.connect:
         p.error("--sim and --connect exclude each other")
@@ -308,4 +294,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m app.main"))

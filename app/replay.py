@@ -23,12 +23,12 @@ import json
 import math
 import os
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Literal, NoReturn
+from typing import Literal
 
 import numpy as np
 
+from app.cli import OneLineParser, number, run_cli
 from app.errors import AppError
 from app.estimators.radar_altitude import (
     AltitudeEstimate,
@@ -101,24 +101,6 @@ def plot(recording: Recording, estimates: list[AltitudeEstimate], path: Path) ->
     return path
 
 
-class _OneLineParser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def _in_range(lo: float, hi: float, unit: str, kind: type = float) -> Callable[[str], float]:
-    def parse(text: str) -> float:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not (math.isfinite(value) and lo <= value <= hi):
-            raise argparse.ArgumentTypeError(f"{text} is outside {lo:g}..{hi:g} {unit}".rstrip())
-        return value
-
-    return parse
-
-
 def _axis(values: list[float]) -> RangeAxis:
     start_m, bin_m, bins = values
     if not math.isfinite(start_m) or not -10.0 <= start_m <= 100.0:
@@ -131,7 +113,7 @@ def _axis(values: list[float]) -> RangeAxis:
 
 
 def radar_main(argv: list[str]) -> int:
-    ap = _OneLineParser(
+    ap = OneLineParser(
         prog="python -m app.replay radar",
         description=__doc__.split("\n\n", 1)[1],
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -140,13 +122,13 @@ def radar_main(argv: list[str]) -> int:
     ap.add_argument("--json", action="store_true", help="one JSON object on stdout")
     ap.add_argument(
         "--calibration-frames",
-        type=_in_range(0, 1e6, "frames", int),
+        type=number(0, 1e6, "frames", int),
         default=0,
         help="background map from the first N frames (0: the adaptive clutter map)",
     )
     ap.add_argument(
         "--threshold",
-        type=_in_range(0.0, 1e3, ""),
+        type=number(0.0, 1e3, ""),
         default=RadarAltitudeSettings().threshold_amplitude,
         help="T_abs, the absolute amplitude threshold of an echo",
     )
@@ -158,7 +140,7 @@ def radar_main(argv: list[str]) -> int:
         help="range axis of a datafloat file (which holds none): first bin's range, bin length, bin count",
     )
     ap.add_argument(
-        "--fps", type=_in_range(0.01, 1000.0, "Hz"), default=DEFAULT_FPS_HZ, help="frame rate of Novelda files, Hz"
+        "--fps", type=number(0.01, 1000.0, "Hz"), default=DEFAULT_FPS_HZ, help="frame rate of Novelda files, Hz"
     )
     ap.add_argument("--plot", default=None, help="PNG path ('' for none; default runs/replay/<name>_radar.png)")
     args = ap.parse_args(argv)
@@ -240,4 +222,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m app.replay radar"))

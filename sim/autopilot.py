@@ -20,11 +20,12 @@ Embedded (tests)::
 from __future__ import annotations
 
 import argparse
+import math
 import signal
-import sys
 import threading
 from types import FrameType
 
+from app.cli import OneLineParser, number, run_cli
 from sim.autopilot_endpoint import SimAutopilot, SimConfig
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, Profile
 from sim.wind import WindConfig
@@ -34,28 +35,56 @@ __all__ = ["SimAutopilot", "SimConfig", "config_from_args", "main"]
 _WIND = WindConfig()
 
 
+def _udp(text: str) -> tuple[str, int]:
+    host, _, port = text.rpartition(":")
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not HOST:PORT (port 1..65535)")
+    return host or "127.0.0.1", int(port)
+
+
+def _home(text: str) -> GeoPoint:
+    try:
+        lat, lon, alt = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not LAT,LON,ALT") from None
+    if not (abs(lat) <= 90.0 and abs(lon) <= 180.0 and -500.0 <= alt <= 9000.0):
+        raise argparse.ArgumentTypeError(f"{text} is outside lat -90..90, lon -180..180, alt -500..9000 m")
+    return GeoPoint(lat, lon, alt)
+
+
+def _param(text: str) -> tuple[str, float]:
+    name, eq, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not eq or not name or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"{text!r} is not NAME=VALUE with a finite number")
+    return name, number
+
+
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="python -m sim.autopilot", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--udp", default="127.0.0.1:14540", help="HOST:PORT where MAVSDK listens (udpin)")
-    ap.add_argument("--pilot-port", type=int, default=14580, help="pilot/GCS UDP port on 127.0.0.1; 0 = off")
+    ap = OneLineParser(prog="python -m sim.autopilot", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--udp", type=_udp, default="127.0.0.1:14540", help="HOST:PORT where MAVSDK listens (udpin)")
+    ap.add_argument(
+        "--pilot-port", type=number(0, 65535, "", int), default=14580, help="pilot/GCS UDP port on 127.0.0.1; 0 = off"
+    )
     ap.add_argument("--profile", choices=[p.value for p in Profile], default=Profile.PX4.value)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--wind-mps", type=float, default=_WIND.mean_mps, help="mean wind speed, m/s")
-    ap.add_argument("--gust-mps", type=float, default=_WIND.gust_sigma_mps, help="gust std dev, m/s")
-    ap.add_argument("--wind-from-deg", type=float, default=_WIND.from_deg, help="wind from, deg")
+    speed = number(0.0, 30.0, "m/s")
+    ap.add_argument("--wind-mps", type=speed, default=_WIND.mean_mps, help="mean wind speed, m/s")
+    ap.add_argument("--gust-mps", type=speed, default=_WIND.gust_sigma_mps, help="gust std dev, m/s")
+    ap.add_argument("--wind-from-deg", type=number(-360.0, 360.0, "deg"), default=_WIND.from_deg, help="wind from, deg")
     ap.add_argument("--no-wind", action="store_true", help="still air")
     ap.add_argument("--state-log", default=None, help="JSON-lines state log file")
-    ap.add_argument("--home", default=None, help="LAT,LON,ALT (deg, deg, m AMSL)")
-    ap.add_argument("--param", action="append", default=[], help="NAME=VALUE parameter override")
+    ap.add_argument("--home", type=_home, default=None, help="LAT,LON,ALT (deg, deg, m AMSL)")
+    ap.add_argument("--param", type=_param, action="append", default=[], help="NAME=VALUE parameter override")
     return ap.parse_args(argv)
 
 
 def config_from_args(args: argparse.Namespace) -> SimConfig:
-    host, _, port = args.udp.rpartition(":")
-    origin = DEFAULT_ORIGIN
-    if args.home:
-        lat, lon, alt = (float(v) for v in args.home.split(","))
-        origin = GeoPoint(lat, lon, alt)
+    host, port = args.udp
+    origin = args.home or DEFAULT_ORIGIN
     wind = (
         WindConfig.off()
         if args.no_wind
@@ -66,9 +95,9 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
             vertical_sigma_mps=_WIND.vertical_sigma_mps if args.gust_mps > 0 else 0.0,
         )
     )
-    params = {k: float(v) for k, v in (item.split("=", 1) for item in args.param)}
+    params = dict(args.param)
     return SimConfig(
-        target=(host or "127.0.0.1", int(port)),
+        target=(host, port),
         pilot_port=args.pilot_port or None,
         profile=Profile(args.profile),
         seed=args.seed,
@@ -81,11 +110,7 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
 
 def main(argv: list[str] | None = None) -> int:
     config = config_from_args(_parse_args(argv))
-    try:
-        sim = SimAutopilot(config)
-    except OSError as e:
-        print(f"sim.autopilot: cannot open the pilot port {config.pilot_port}: {e}", file=sys.stderr)
-        return 2
+    sim = SimAutopilot(config)  # a port in use or an unwritable state log: one line via run_cli
     stop = threading.Event()
 
     def _on_signal(signum: int, frame: FrameType | None) -> None:
@@ -104,4 +129,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_cli(main, "python -m sim.autopilot"))

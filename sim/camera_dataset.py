@@ -14,7 +14,6 @@ nuisances it was rendered with.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -24,6 +23,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from app.cli import OneLineParser, number, run_cli
 from app.sensors.camera import ExposureControls
 from app.settings import CameraSettings, DetectorSettings
 from sim.camera_render import CameraRenderer, Conditions, Glare
@@ -163,12 +163,13 @@ def generate(out: Path, seed: int, scenes: int = 70, frames_per_scene: int = 4, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m sim.camera_dataset", description=__doc__.split("\n")[0])
+    parser = OneLineParser(prog="python -m sim.camera_dataset", description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="directory to write frames/ and truth.json into")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--scenes", type=int, default=70, help="marker scenes")
-    parser.add_argument("--frames-per-scene", type=int, default=4)
-    parser.add_argument("--empty", type=int, default=40, help="frames of open sea without the marker")
+    count = number(0, 100_000, "", int)
+    parser.add_argument("--scenes", type=count, default=70, help="marker scenes")
+    parser.add_argument("--frames-per-scene", type=number(1, 1000, "", int), default=4, help="frames per scene")
+    parser.add_argument("--empty", type=count, default=40, help="frames of open sea without the marker")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     doc = generate(args.out, args.seed, args.scenes, args.frames_per_scene, args.empty)
@@ -177,4 +178,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m sim.camera_dataset"))

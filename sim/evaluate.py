@@ -10,7 +10,6 @@ the sea state's Hs and Tp.
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import sys
@@ -19,6 +18,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from app.cli import OneLineParser, number, run_cli
 from app.estimators.cv_filter import ConstantVelocityFilter
 from app.estimators.sea_state import SEA_STATES
 from app.estimators.target_filter import LinearTargetFilter
@@ -134,13 +134,18 @@ def print_table(result: dict[str, dict[str, object]]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m sim.evaluate", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog="python -m sim.evaluate", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="what", required=True)
     f = sub.add_parser("filters", help="constant-velocity vs wave filter prediction error by sea state")
     f.add_argument("--sea-state", type=int, action="append", choices=range(0, 6), help="repeatable (default 0–4)")
-    f.add_argument("--duration-s", type=float, default=600.0, help="length of each fix stream, s")
+    f.add_argument("--duration-s", type=number(1.0, 86_400.0, "s"), default=600.0, help="length of each fix stream, s")
     f.add_argument("--seed", type=int, default=1)
-    f.add_argument("--tune-duration-s", type=float, default=180.0, help="fix stream for tuning the CV baseline, s")
+    f.add_argument(
+        "--tune-duration-s",
+        type=number(1.0, 86_400.0, "s"),
+        default=180.0,
+        help="fix stream for tuning the CV baseline, s",
+    )
     f.add_argument("--json", action="store_true", help="one JSON object on stdout")
     args = p.parse_args(argv)
     codes = args.sea_state or [0, 1, 2, 3, 4]
@@ -155,4 +160,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m sim.evaluate"))

@@ -21,7 +21,6 @@ on, a 1 s event-loop stall, and 1 s of NaN position/attitude samples.
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import collections
 import concurrent.futures
@@ -37,6 +36,7 @@ from typing import Any
 
 import looptime
 
+from app.cli import OneLineParser, run_cli
 from app.clock import LoopClock
 from app.errors import VehicleError
 from app.eventlog import EventLog
@@ -445,7 +445,7 @@ def table(results: list[CaseResult]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
+    ap = OneLineParser(
         prog="python -m sim.faults",
         description="Fly the circle mission in virtual time with one fault per flying state and check the "
         "safety rules from the simulated vehicle's side.",
@@ -483,4 +483,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m sim.faults"))

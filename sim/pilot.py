@@ -14,13 +14,13 @@ Modes: MANUAL, ALTCTL, POSCTL, STABILIZED, HOLD, OFFBOARD, RTL, LAND. Exit 0 on 
 
 from __future__ import annotations
 
-import argparse
 import socket
 import time
 from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from app.cli import OneLineParser, number, run_cli
 from app.messages import FlightMode
 from sim.autopilot_modes import Mode, Profile, mode_for, mode_from_custom
 
@@ -161,13 +161,13 @@ def set_mode(mode_name: str, host: str = "127.0.0.1", port: int = 14580, timeout
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m sim.pilot", description="Switch flight mode like an RC pilot.")
+    ap = OneLineParser(prog="python -m sim.pilot", description="Switch flight mode like an RC pilot.")
     group = ap.add_mutually_exclusive_group(required=True)
     group.add_argument("--mode", choices=list(PILOT_MODE_NAMES), type=str.upper)
     group.add_argument("--status", action="store_true", help="print the current mode and exit")
     ap.add_argument("--host", default="127.0.0.1")
-    ap.add_argument("--port", type=int, default=14580, help="the simulator's pilot port")
-    ap.add_argument("--timeout-s", type=float, default=3.0)
+    ap.add_argument("--port", type=number(1, 65535, "", int), default=14580, help="the simulator's pilot port")
+    ap.add_argument("--timeout-s", type=number(0.05, 60.0, "s"), default=3.0, help="wait for the answer, s")
     args = ap.parse_args(argv)
     if args.status:
         result = status(args.host, args.port, args.timeout_s)
@@ -178,4 +178,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_cli(main, "python -m sim.pilot"))

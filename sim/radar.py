@@ -18,6 +18,7 @@ import contextlib
 import errno
 import fcntl
 import json
+import math
 import os
 import select
 import signal
@@ -29,6 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from app.cli import OneLineParser, number, run_cli
 from app.sensors.radar import RangeAxis
 from sim.radar_firmware import FirmwareConfig, FirmwareFaults, X4M03Firmware
 from sim.radar_signal import RadarSignalConfig, SeaRadarScene
@@ -202,28 +204,37 @@ def sea_emulator(
 
 def _parse_profile(text: str) -> tuple[tuple[float, float], ...]:
     """``"0:6.5,5:6.5,10:1.5"`` → ((0, 6.5), (5, 6.5), (10, 1.5))."""
-    points = []
+    points: list[tuple[float, float]] = []
     for item in text.split(","):
-        t, h = item.split(":")
-        points.append((float(t), float(h)))
+        t_text, _, h_text = item.partition(":")
+        try:
+            t, h = float(t_text), float(h_text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not t_s:height_m,... (e.g. 0:6.5,5:6.5,10:1.5)") from None
+        if not (math.isfinite(t) and 0.0 <= t and 0.05 <= h <= 50.0) or (points and t <= points[-1][0]):
+            raise argparse.ArgumentTypeError(f"{item}: times rise from 0, heights 0.05..50 m")
+        points.append((t, h))
     return tuple(points)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m sim.radar", description=__doc__.split("\n")[0])
+    ap = OneLineParser(prog="python -m sim.radar", description=__doc__.split("\n")[0])
     ap.add_argument("--link", help="stable symlink to the current pty (like /dev/serial/by-id/...)")
     ap.add_argument("--sea-state", type=int, default=1, choices=range(6))
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--height-m", type=float, default=2.0, help="hover height above the mean sea")
+    ap.add_argument("--height-m", type=number(0.05, 50.0, "m"), default=2.0, help="hover height above the mean sea")
     ap.add_argument("--profile", type=_parse_profile, help="height waypoints t_s:height_m,... instead")
-    ap.add_argument("--tilt-deg", type=float, default=3.0, help="RMS roll/pitch wobble")
-    ap.add_argument("--boot-delay-s", type=float, default=1.0)
-    ap.add_argument("--ready-delay-s", type=float, default=1.0)
+    ap.add_argument("--tilt-deg", type=number(0.0, 45.0, "deg"), default=3.0, help="RMS roll/pitch wobble")
+    ap.add_argument("--boot-delay-s", type=number(0.0, 60.0, "s"), default=1.0, help="power-on to BOOTING, s")
+    ap.add_argument("--ready-delay-s", type=number(0.0, 60.0, "s"), default=1.0, help="BOOTING to READY, s")
     ap.add_argument("--escaped-frames", action="store_true", help="legacy escaped DataFloat frames")
-    ap.add_argument("--garbage-prob", type=float, default=0.0)
-    ap.add_argument("--drop-prob", type=float, default=0.0)
-    ap.add_argument("--corrupt-reply-prob", type=float, default=0.0)
-    ap.add_argument("--duration-s", type=float, default=0.0, help="exit after this long (0: until SIGINT)")
+    prob = number(0.0, 1.0)
+    ap.add_argument("--garbage-prob", type=prob, default=0.0, help="chance of line noise before a frame")
+    ap.add_argument("--drop-prob", type=prob, default=0.0, help="chance a frame is dropped")
+    ap.add_argument("--corrupt-reply-prob", type=prob, default=0.0, help="chance a reply is corrupted")
+    ap.add_argument(
+        "--duration-s", type=number(0.0, 1e6, "s"), default=0.0, help="exit after this long (0: until SIGINT)"
+    )
     args = ap.parse_args(argv)
     track = TrackConfig(waypoints=args.profile or ((0.0, args.height_m),), tilt_wobble_deg=args.tilt_deg)
     emulator = sea_emulator(
@@ -260,4 +271,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m sim.radar"))

@@ -12,7 +12,6 @@ attitude the vehicle would report, ``roll_rad``, ``pitch_rad``.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from collections.abc import Sequence
@@ -21,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from app.cli import OneLineParser, int_list, number, run_cli
 from app.sensors.radar import RadarFrame
 from app.sensors.x4m03_frame_area import quantise_frame_area
 from app.sensors.x4m03_recording import RecordingWriter
@@ -79,15 +79,15 @@ def make_run(out: Path, name: str, sea_state: int, hover_m: float, hover_s: floa
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m sim.radar_dataset", description=__doc__.split("\n")[0])
+    ap = OneLineParser(prog="python -m sim.radar_dataset", description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--sea-states", default="0,1,3", help="comma-separated WMO codes")
-    ap.add_argument("--hover-s", type=float, default=30.0)
+    ap.add_argument("--sea-states", type=int_list(0, 5), default="0,1,3", help="comma-separated WMO codes 0..5")
+    ap.add_argument("--hover-s", type=number(0.5, 3600.0, "s"), default=30.0, help="hover time per run, s")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     runs = []
-    for sea_state in (int(s) for s in args.sea_states.split(",")):
+    for sea_state in args.sea_states:
         hs_m = SeaWorld(SeaConfig(sea_state=sea_state), args.seed).sea_state.hs_m
         for k, hover_m in enumerate(hover_heights_m(sea_state, hs_m)):
             name = f"ss{sea_state}_h{hover_m:.2f}".replace(".", "p")
@@ -104,4 +104,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m sim.radar_dataset"))

@@ -18,9 +18,7 @@ marker, or off the marker — is a false fix.
 
 from __future__ import annotations
 
-import argparse
 import json
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -32,6 +30,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from app.cli import OneLineParser, number, run_child
 from app.sensors.camera_model import CameraModel
 from app.sensors.detect import DetectionHint
 from app.sensors.detect_marker import MarkerDetector
@@ -101,7 +100,7 @@ def ensure_dataset(directory: Path, seed: int, size: dict[str, int], regenerate:
             return dict(doc)
     cmd = [sys.executable, "-m", "sim.camera_dataset", "--out", str(directory), "--seed", str(seed)]
     cmd += [f"--{k.replace('_', '-')}={v}" for k, v in size.items()]
-    subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    run_child(cmd, ROOT)
     return dict(json.loads(truth.read_text()))
 
 
@@ -251,15 +250,20 @@ def report(r: dict[str, Any]) -> str:
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="python -m app.bench perception", description=__doc__.split("\n")[0])
+    parser = OneLineParser(prog="python -m app.bench perception", description=__doc__.split("\n")[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.add_argument("--seed", type=int, default=1, help="data set seed")
     parser.add_argument("--data", type=Path, default=None, help="data set directory (default: under runs/)")
     parser.add_argument("--regenerate", action="store_true", help="render the data set again")
-    parser.add_argument("--repeat", type=int, default=3, help="time each frame this often, keep the fastest")
-    parser.add_argument("--scenes", type=int, default=70, help="marker scenes in the data set")
-    parser.add_argument("--frames-per-scene", type=int, default=4, help="consecutive frames per scene")
-    parser.add_argument("--empty", type=int, default=40, help="open-sea frames in the data set")
+    count = number(0, 100_000, "", int)
+    parser.add_argument(
+        "--repeat", type=number(1, 100, "", int), default=3, help="time each frame this often, keep the fastest"
+    )
+    parser.add_argument("--scenes", type=count, default=70, help="marker scenes in the data set")
+    parser.add_argument(
+        "--frames-per-scene", type=number(1, 1000, "", int), default=4, help="consecutive frames per scene"
+    )
+    parser.add_argument("--empty", type=count, default=40, help="open-sea frames in the data set")
     args = parser.parse_args(argv)
     size = {"scenes": args.scenes, "frames_per_scene": args.frames_per_scene, "empty": args.empty}
     name = f"perception-seed{args.seed}-{args.scenes}x{args.frames_per_scene}-{args.empty}"

@@ -17,9 +17,7 @@ wire_frames_per_s times the streaming parser on the same frames as bytes.
 
 from __future__ import annotations
 
-import argparse
 import json
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -27,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.cli import OneLineParser, int_list, number, run_child
 from app.estimators.radar_altitude import RadarAltitudeEstimator, calibrate_background
 from app.sensors.x4m03_codec import data_float_payload, encode_noescape
 from app.sensors.x4m03_parser import X4M03Parser
@@ -72,10 +71,10 @@ class Samples:
         }
 
 
-def make_dataset(out: Path, seed: int, hover_s: float, sea_states: str) -> None:
+def make_dataset(out: Path, seed: int, hover_s: float, sea_states: tuple[int, ...]) -> None:
     cmd = [sys.executable, "-m", "sim.radar_dataset", "--out", str(out), "--seed", str(seed)]
-    cmd += ["--hover-s", str(hover_s), "--sea-states", sea_states]
-    subprocess.run(cmd, check=True, cwd=ROOT, capture_output=True, text=True)
+    cmd += ["--hover-s", str(hover_s), "--sea-states", ",".join(map(str, sea_states))]
+    run_child(cmd, ROOT)
 
 
 def evaluate(data: Path) -> tuple[dict[tuple[int, str], Samples], float, int]:
@@ -209,21 +208,17 @@ def plot(samples: dict[tuple[int, str], Samples], path: Path) -> Path | None:
 
 
 def main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="python -m app.bench radar", description=__doc__.split("\n")[0])
+    ap = OneLineParser(prog="python -m app.bench radar", description=__doc__.split("\n")[0])
     ap.add_argument("--json", action="store_true", help="one JSON object on stdout")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--hover-s", type=float, default=30.0, help="hover time per run, s")
-    ap.add_argument("--sea-states", default="0,1,3", help="WMO codes to simulate, comma-separated")
+    ap.add_argument("--hover-s", type=number(0.5, 3600.0, "s"), default=30.0, help="hover time per run, s")
+    ap.add_argument("--sea-states", type=int_list(0, 5), default="0,1,3", help="WMO codes 0..5, comma-separated")
     ap.add_argument("--data", type=Path, help="use this existing data set instead of generating one")
     ap.add_argument("--out", type=Path, help="where to generate the data set (default runs/bench_radar/seed<N>)")
     args = ap.parse_args(argv)
     data = args.data or args.out or ROOT / "runs" / "bench_radar" / f"seed{args.seed}"
     if args.data is None:
-        try:
-            make_dataset(data, args.seed, args.hover_s, args.sea_states)
-        except subprocess.CalledProcessError as e:
-            print(f"sim.radar_dataset failed:\n{e.stderr}", file=sys.stderr)
-            return 1
+        make_dataset(data, args.seed, args.hover_s, args.sea_states)
     samples, frames_per_s, processed = evaluate(data)
     summary = summarise(samples, frames_per_s)
     summary["frames"] = processed

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from app.cli import OneLineParser, number
 from app.estimators.rotations import euler_zyx_to_matrix
 from app.estimators.state_history import StateHistory
 from app.estimators.triangulation import SeaPlaneTriangulator
@@ -255,16 +256,20 @@ def _format(r: dict[str, Any]) -> str:
 
 
 def main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="python -m app.bench triangulation", description=__doc__.split("\n")[0])
+    ap = OneLineParser(prog="python -m app.bench triangulation", description=__doc__.split("\n")[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
-    ap.add_argument("--cases", type=int, default=3000, help="Monte Carlo cases")
+    ap.add_argument("--cases", type=number(1, 10_000_000, "", int), default=3000, help="Monte Carlo cases")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--pixel-noise-px", type=float, default=0.5)
-    ap.add_argument("--height-noise-m", type=float, default=0.0, help="radar height noise (std), m")
-    ap.add_argument("--max-latency-ms", type=float, default=250.0)
-    ap.add_argument("--speed-mps", type=float, default=2.0)
-    ap.add_argument("--rate-dps", type=float, default=30.0, help="peak roll/pitch rate and yaw rate, deg/s")
-    ap.add_argument("--telemetry-hz", type=float, default=50.0)
+    ap.add_argument("--pixel-noise-px", type=number(0.0, 20.0, "px"), default=0.5, help="pixel noise (std), px")
+    ap.add_argument("--height-noise-m", type=number(0.0, 5.0, "m"), default=0.0, help="radar height noise (std), m")
+    ap.add_argument(
+        "--max-latency-ms", type=number(0.0, 5000.0, "ms"), default=250.0, help="largest capture-to-fix latency"
+    )
+    ap.add_argument("--speed-mps", type=number(0.0, 30.0, "m/s"), default=2.0, help="vehicle speed, m/s")
+    ap.add_argument(
+        "--rate-dps", type=number(0.0, 720.0, "deg/s"), default=30.0, help="peak roll/pitch rate and yaw rate, deg/s"
+    )
+    ap.add_argument("--telemetry-hz", type=number(1.0, 1000.0, "Hz"), default=50.0, help="telemetry rate, Hz")
     args = ap.parse_args(argv)
     result = run(args)
     print(json.dumps(result) if args.json else _format(result))

@@ -7,7 +7,6 @@ Prints one JSON summary line with the driver's counters. Works on the emulator's
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import contextlib
 import json
@@ -15,6 +14,7 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
+from app.cli import OneLineParser, number, run_cli
 from app.errors import AppError
 from app.sensors.radar import Radar
 from app.sensors.x4m03_driver import X4M03Radar
@@ -38,12 +38,14 @@ async def record(radar: Radar, out: Path, frames: int, header: dict[str, object]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m app.sensors.x4m03_record", description=__doc__.split("\n")[0])
-    ap.add_argument("port")
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--frames", type=int, default=100)
+    ap = OneLineParser(prog="python -m app.sensors.x4m03_record", description=__doc__.split("\n")[0])
+    ap.add_argument("port", help="the radar's serial device (or the emulator's pty link)")
+    ap.add_argument("out", type=Path, help="the recording to write (.x4rec)")
+    ap.add_argument("--frames", type=number(1, 1_000_000_000, "", int), default=100, help="stop after N frames")
     ap.add_argument("--settings", type=Path, help="JSON object of RadarSettings fields")
     args = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    if not Path(args.port).exists():  # once recording, an unplugged radar is waited for; at the start, a typo is not
+        ap.error(f"{args.port}: no such device")
     try:
         fields = json.loads(args.settings.read_text()) if args.settings else {}
         settings = validate_section(
@@ -73,4 +75,4 @@ def _counters(radar: X4M03Radar) -> dict[str, object]:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_cli(main, "python -m app.sensors.x4m03_record"))

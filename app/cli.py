@@ -1,0 +1,92 @@
+"""What every command line of the project shares: bad input is one line on stderr and exit status 2.
+
+    parser = OneLineParser(prog="python -m app.x", description=...)
+    parser.add_argument("--rate", type=number(0.1, 100.0, "Hz"), ...)
+    ...
+    if __name__ == "__main__":
+        sys.exit(run_cli(main, "python -m app.x"))
+
+``OneLineParser`` prints ``prog: error: message`` (no usage block) and exits 2; its sub-parsers inherit
+that. ``number`` is an argparse type that refuses non-numbers, NaN/inf and values outside a range,
+naming the range. ``run_cli`` runs ``main`` and turns the errors bad input raises on the way — a file
+that cannot be read or written (``OSError``), an invalid file (``AppError``, e.g. ``ConfigError``), a
+value no parser caught (``ValueError``) — into that one line and exit status 2, never a traceback;
+output piped into ``head`` stops quietly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import NoReturn
+
+from app.errors import AppError
+
+BAD_INPUT = 2
+
+
+class OneLineParser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        self.exit(BAD_INPUT, f"{self.prog}: error: {message}\n")
+
+
+def number(lo: float, hi: float, unit: str = "", kind: type[float] | type[int] = float) -> Callable[[str], float]:
+    """An argparse type: a finite ``kind`` in ``lo..hi`` (``unit`` only names it in the message)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a{'n integer' if kind is int else ' number'}") from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"{text} is outside {lo:g}..{hi:g} {unit}".rstrip())
+        return value
+
+    return parse
+
+
+def int_list(lo: int, hi: int) -> Callable[[str], tuple[int, ...]]:
+    """An argparse type: comma-separated integers in ``lo..hi`` (e.g. sea states ``0,1,3``)."""
+
+    def parse(text: str) -> tuple[int, ...]:
+        try:
+            values = tuple(int(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers") from None
+        if not all(lo <= v <= hi for v in values):
+            raise argparse.ArgumentTypeError(f"{text}: each must be in {lo}..{hi}")
+        return values
+
+    return parse
+
+
+def run_child(cmd: list[str], cwd: Path) -> None:
+    """Run another of our command lines; its failure becomes an ``AppError`` carrying its one-line error."""
+    done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or [f"exit status {done.returncode}"])[-1]
+        raise AppError(f"{' '.join(cmd[1:3])} failed: {last}")
+
+
+def one_line(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        name = exc.filename2 or exc.filename  # symlink/rename: the second name is the one being made
+        return f"{name}: {exc.strerror}" if name else exc.strerror
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def run_cli(main: Callable[[], int], prog: str) -> int:
+    """``main()``'s exit status; bad input it raises becomes one line on stderr and status 2."""
+    try:
+        return main()
+    except BrokenPipeError:  # piped into head: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except (AppError, OSError, ValueError) as e:
+        print(f"{prog}: error: {one_line(e)}", file=sys.stderr)
+        return BAD_INPUT
