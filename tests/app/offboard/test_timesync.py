@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import random
 import time
 
@@ -161,3 +162,56 @@ async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop
     assert max(err_read) > 0.10  # the stalls were real: stamped when read, samples are far off
     # Received in MAVSDK's thread, not when the loop got to them: the stalls do not show as link latency.
     print(f"position latency p95 {stats['position_latency_p95_s']} s, max {stats['position_latency_max_s']} s")
+
+
+async def test_a_mode_switch_during_a_loop_stall_is_stamped_when_it_arrived_not_when_read(tmp_path):
+    """The pilot switches while the app's loop is blocked for 0.8 s: the first sample showing the new mode
+    carries the time MAVSDK received it (within a CURRENT_MODE period of the switch), not the end of the stall
+    (stamped when read, the whole backlog would look fresh)."""
+    import threading
+
+    from app.messages import FlightMode
+    from app.offboard.mavsdk_vehicle import MavsdkVehicle
+    from sim import pilot
+
+    port = free_udp_port()
+    sim = SimAutopilot(SimConfig(target=("127.0.0.1", port), pilot_port=0, wind=WindConfig.off()))
+    clock = LoopClock()
+    events = EventLog(tmp_path / "events.jsonl")
+    switched: list[float] = []
+
+    def pilot_switch() -> None:
+        time.sleep(0.2)
+        assert sim.pilot_address is not None
+        switched.append(time.monotonic())
+        pilot.set_mode("POSCTL", "127.0.0.1", sim.pilot_address[1], 5.0)
+
+    try:
+        sim.start()
+        async with MavsdkVehicle.connect(
+            f"udpin://0.0.0.0:{port}", clock, events, ConnectionSettings(), TelemetrySettings()
+        ) as vehicle:
+            streams = asyncio.create_task(vehicle.run())
+            try:
+                await vehicle.wait_ready(20.0)
+                await eventually(lambda: vehicle.telemetry().mode() is FlightMode.HOLD, 10.0)
+                await asyncio.sleep(1.0)  # CURRENT_MODE requested and flowing
+                threading.Thread(target=pilot_switch, daemon=True).start()
+                time.sleep(0.8)  # noqa: ASYNC251 — the loop is blocked on purpose
+                unblocked = clock.now_s()
+                await asyncio.sleep(0.05)
+                tel = vehicle.telemetry()
+            finally:
+                streams.cancel()
+    finally:
+        sim.stop()
+        events.close()
+    assert tel.flight_mode is not None and tel.flight_mode.value is FlightMode.POSCTL
+    lines = [json.loads(x) for x in (tmp_path / "events.jsonl").read_text().splitlines()]
+    first = next(e for e in lines if e.get("event") == "flight_mode" and e["mode"] == "POSCTL")
+    after_switch_s, read_after_s = first["t_s"] - switched[0], unblocked - switched[0]
+    print(
+        f"POSCTL stamped {after_switch_s * 1000:.0f} ms after the switch; the loop was free {read_after_s:.2f} s later"
+    )
+    assert 0.0 <= after_switch_s < read_after_s - 0.2  # received during the stall, and stamped so
+    assert tel.heartbeat_t_s is not None and tel.heartbeat_t_s <= unblocked + 0.05
