@@ -100,3 +100,17 @@ def test_manual_state_must_not_command(tmp_path):
 def test_mermaid_lists_every_transition():
     m = load_mission("circle").to_mermaid()
     assert "TRACK --> LAND: circle_laps_done" in m and "MANUAL --> TRACK: handed back (from TRACK)" in m
+
+
+@pytest.mark.parametrize("guard", ["abort_requested", "link_lost", "position_lost", "setpoints_failing"])
+def test_a_flying_state_without_a_link_guard_is_refused(tmp_path, guard):
+    def drop(t):
+        t["states"]["LAND"]["transitions"] = [x for x in t["states"]["LAND"]["transitions"] if x["when"] != guard]
+
+    e = broken(tmp_path, drop)
+    assert e.path == "states.LAND.transitions" and f"a flying state needs the guards {guard}" in e.message
+
+
+def test_abort_requested_must_lead_to_the_abort_state(tmp_path):
+    e = broken(tmp_path, lambda t: t["states"]["TRACK"]["transitions"][0].update(to="LAND"))
+    assert e.path == "states.TRACK.transitions[0].to" and "abort_requested must lead to the abort state" in e.message
