@@ -372,3 +372,30 @@ async def test_losing_the_target_holds_the_position_where_it_went_missing():
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task
+
+
+class BuggyTarget:
+    name = "buggy"
+
+    def target_at(self, t_s):
+        raise ZeroDivisionError("a bug in the guidance code")
+
+    def observe(self, sample):
+        pass
+
+
+@LOOPTIME
+async def test_an_exception_in_track_still_leaves_offboard_with_zero_velocity_then_hold():
+    vehicle = FaultyVehicle(seed=1)
+    clock = LoopClock()
+    runners = []
+    task = asyncio.create_task(
+        fly_mission(vehicle, load_mission("circle"), Settings(), clock, EventLog(None), on_start=runners.append)
+    )
+    t_bug = await in_track(vehicle, clock)
+    runners[0].setpoints.engage(BuggyTarget())
+    with pytest.raises(ExceptionGroup) as e:
+        await task
+    assert e.group_contains(ZeroDivisionError)
+    assert_zero_then_hold(vehicle, t_bug)
+    assert vehicle.truth().flight_mode is FlightMode.HOLD
