@@ -16,6 +16,10 @@ Model per step (PX4 ``PositionControl::_velocityControl`` / ``_accelerationContr
 
 The hover thrust is known exactly (feed-forward g), so the integrators only have to reject drag and
 wind, which is what they do in PX4 too (there the hover-thrust estimator takes care of g).
+
+Optional input shaping (ArduCopter's position controller shapes the commanded velocity before its PID):
+per axis, the setpoint is delayed by ``shaping_delay_s`` and passed through two first-order lags of
+``shaping_tau_s``; the PID then tracks the shaped setpoint. ``sim.airframes`` holds calibrated sets.
 """
 
 from __future__ import annotations
@@ -66,6 +70,8 @@ class MultirotorParams:
     yaw_rate_max_dps: float = 60.0  # MPC_YAWRAUTO_MAX-ish
     drag_per_s: float = 0.3  # linear drag towards the air-relative velocity
     thrust_to_weight: float = 2.0
+    shaping_delay_s: Vec3 | None = None  # input shaping: setpoint delay per axis (None: no shaping)
+    shaping_tau_s: Vec3 = (0.0, 0.0, 0.0)  # input shaping: the two lags' time constant per axis
     battery: BatteryParams = field(default_factory=BatteryParams)
 
 
@@ -181,6 +187,7 @@ class Dynamics:
         self._yaw_rad = yaw_rad
         self._rates = (0.0, 0.0, 0.0)
         self._vel_int = [0.0, 0.0, 0.0]
+        self._shaper = _Shaper(self.params) if self.params.shaping_delay_s is not None else None
         self._thrust_mps2 = 0.0
         self._on_ground = self._p[2] >= self.ground_down_m
         self._wind_ned_mps = self.wind.wind_ned_mps
@@ -210,6 +217,11 @@ class Dynamics:
     def tilt_rad(self) -> float:
         """Angle between the thrust axis and the vertical."""
         return math.acos(_clamp(math.cos(self._roll_rad) * math.cos(self._pitch_rad), -1.0, 1.0))
+
+    def start_airborne(self, vel_ned_mps: Vec3) -> None:
+        """Begin in flight at ``vel_ned_mps`` (for replays that start mid-air)."""
+        self._on_ground = False
+        self._v = list(vel_ned_mps)
 
     def reset_integrators(self) -> None:
         self._vel_int = [0.0, 0.0, 0.0]
@@ -286,7 +298,10 @@ class Dynamics:
         roll0, pitch0, yaw0 = self._roll_rad, self._pitch_rad, self._yaw_rad
 
         if control.motors_on:
-            acc_sp = self._acceleration_setpoint(control.vel_sp_ned_mps, dt_s)
+            vel_sp = control.vel_sp_ned_mps
+            if self._shaper is not None:
+                vel_sp = self._shaper.step(dt_s, vel_sp, self._on_ground, self._v)
+            acc_sp = self._acceleration_setpoint(vel_sp, dt_s)
             roll_sp, pitch_sp, thrust = self._attitude_setpoint(acc_sp)
         else:
             self.reset_integrators()
@@ -341,3 +356,36 @@ class Dynamics:
             wrap_pi(self._yaw_rad - yaw0) / dt_s,
         )
         self.battery.step(dt_s, thrust, control.motors_on, armed)
+
+
+class _Shaper:
+    """Per axis: a delay line of ``shaping_delay_s``, then two first-order lags of ``shaping_tau_s``.
+
+    Stepped at the physics rate; the delay line holds (time, setpoint) pairs. On the ground the shaper
+    follows the vehicle (nothing to shape while sitting still)."""
+
+    def __init__(self, params: MultirotorParams) -> None:
+        assert params.shaping_delay_s is not None
+        self._delay = params.shaping_delay_s
+        self._tau = params.shaping_tau_s
+        self._t = 0.0
+        self._queue: list[tuple[float, Vec3]] = []
+        self._lag1 = [0.0, 0.0, 0.0]
+        self._lag2 = [0.0, 0.0, 0.0]
+
+    def step(self, dt_s: float, vel_sp: Vec3, on_ground: bool, vel: list[float]) -> Vec3:
+        self._t += dt_s
+        self._queue.append((self._t, vel_sp))
+        oldest = self._t - max(self._delay) - dt_s
+        while len(self._queue) > 1 and self._queue[1][0] <= oldest:
+            self._queue.pop(0)
+        out = [0.0, 0.0, 0.0]
+        for i in range(3):
+            u = next((sp[i] for t, sp in reversed(self._queue) if t <= self._t - self._delay[i]), self._queue[0][1][i])
+            if on_ground:
+                self._lag1[i] = self._lag2[i] = vel[i]
+            k = 1.0 - math.exp(-dt_s / self._tau[i]) if self._tau[i] > 0.0 else 1.0
+            self._lag1[i] += k * (u - self._lag1[i])
+            self._lag2[i] += k * (self._lag1[i] - self._lag2[i])
+            out[i] = self._lag2[i]
+        return (out[0], out[1], out[2])
