@@ -11,7 +11,11 @@ the velocity against each recording.
 - ``ARDUCOPTER``: ArduCopter's position controller shapes the commanded velocity (delay, then a double
   first-order lag: T_d 0.14 / 0.24 / 0.18 s and τ 0.25 / 0.28 / 0.20 s fit the recording on their own);
   here the shaped setpoint is tracked by a stiff PID (P 8, I 4 horizontally; 12, 6 vertically), whose own
-  lag of ~0.08 s is taken off the delays. RMS residual 0.030 / 0.038 / 0.025 m/s.
+  lag of ~0.08 s is taken off the delays. RMS residual 0.030 / 0.038 / 0.025 m/s. **Open loop only**: flown
+  by the circle mission (in process, calm) it gives p95 0.87 m where real ArduCopter SITL gives 0.012 m.
+  ArduCopter's GUIDED velocity control also integrates the shaped velocity into a position target that its
+  position loop tracks; without that, the app's position loop around ~0.5 s of shaping lag limit-cycles.
+  To be modelled (issue 10).
 - ``DEFAULT``: what the simulator flew before calibration (drag 0.3 s⁻¹, no shaping). It stays the default
   for now: the guidance is not yet robust to ``PX4_SIH``'s slow integrator mode (issue 10).
 """
