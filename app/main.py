@@ -27,6 +27,7 @@ from app.cli import OneLineParser, number, run_cli
 from app.clock import Clock, LoopClock
 from app.errors import AppError, ConfigError
 from app.eventlog import EventLog
+from app.messages import Autopilot
 from app.missions.runner import MissionRunner, RunResult
 from app.missions.table import MissionTable, load_mission
 from app.offboard.boundary import BoundaryParams, VehicleBoundary
@@ -41,6 +42,9 @@ SPEED = number(0.0, 30.0, "m/s")
 UDP_PORT = number(0, 65535, "(UDP port)", int)
 
 
+SIM_PROFILES = ("px4", "px4-sih", "ardupilot")  # sim.airframes.SIM_PROFILES (the simulator is another process)
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = OneLineParser(prog="python -m app.main", description=__doc__.split("\n\n")[0])
     p.add_argument("--mission", required=True, help="mission name (circle) or path to a mission YAML")
@@ -53,7 +57,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     sim.add_argument("--wind-mps", type=SPEED, default=None, help="mean wind speed, m/s (sim default 5)")
     sim.add_argument("--gust-mps", type=SPEED, default=None, help="gust standard deviation, m/s (sim default 1)")
     sim.add_argument("--no-wind", action="store_true", help="calm air")
-    sim.add_argument("--sim-profile", choices=("px4", "ardupilot"), default="px4", help="simulated autopilot")
+    sim.add_argument(
+        "--sim-profile",
+        choices=SIM_PROFILES,
+        default="px4",
+        help="simulated autopilot, calibrated against real firmware: PX4 on a real airframe with a GNSS-grade "
+        "estimate, PX4 SIH as recorded (its drag and estimator errors), ArduCopter",
+    )
     sim.add_argument(
         "--pilot-port",
         type=UDP_PORT,
@@ -109,6 +119,7 @@ def build_flight(
 ) -> tuple[VehicleBoundary, SetpointLoop, MissionRunner]:
     """The boundary, the setpoint loop and the runner for one mission on ``vehicle``."""
     g, e = settings.guidance, settings.envelope
+    comp = g.ardupilot if vehicle.autopilot is Autopilot.ARDUPILOT else g.px4
     boundary = VehicleBoundary(
         vehicle,
         clock,
@@ -126,7 +137,18 @@ def build_flight(
         boundary,
         clock,
         events,
-        ConstantBearingParams(g.approach_speed_max_mps, g.transient_distance_m, g.velocity_lead_s),
+        ConstantBearingParams(
+            g.approach_speed_max_mps,
+            g.transient_distance_m,
+            g.velocity_lead_s,
+            comp.integral_gain_per_s2,
+            g.integral_max_mps,
+            g.integral_within_m,
+            comp.inconsistency_tau_s,
+            g.inconsistency_max_mps,
+            comp.velocity_error_gain,
+            g.velocity_error_max_mps,
+        ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,
         settings.telemetry.position_stale_s,
@@ -216,6 +238,18 @@ async def connect_and_fly(url: str, table: MissionTable, settings: Settings, eve
         return await fly_mission(vehicle, table, settings, clock, events)
 
 
+def tracking_report(summary: dict[str, Any]) -> str:
+    """The tracking error after convergence, 3-D / horizontal / vertical, as one table."""
+    rows = [("3-D", ""), ("horizontal", "horizontal_"), ("vertical", "vertical_")]
+    head = f"tracking error after convergence ({summary['tracking_samples']} samples):"
+    lines = [head, "             p50 m    p95 m"]
+    for label, key in rows:
+        p50, p95 = summary.get(f"tracking_error_{key}p50_m"), summary.get(f"tracking_error_{key}p95_m")
+        if p50 is not None and p95 is not None:
+            lines.append(f"  {label:<10} {p50:7.4f}  {p95:7.4f}")
+    return "\n".join(lines)
+
+
 def first_leaf(exc: BaseException) -> BaseException:
     while isinstance(exc, BaseExceptionGroup):
         exc = exc.exceptions[0]
@@ -286,6 +320,8 @@ def main(argv: list[str] | None = None) -> int:
                 sim_proc.kill()
     summary["event_counts"] = events.counts
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if summary.get("tracking_samples"):
+        print(tracking_report(summary))
     if summary["outcome"] == "completed":
         print(f"seapick: mission {table.mission} completed in {summary['duration_s']:.1f} s ({run_dir})")
         return 0

@@ -64,6 +64,23 @@ class EnvelopeSettings(_Model):
     )
 
 
+class AutopilotCompensation(_Model):
+    """What the position loop adds for one autopilot's velocity response (``app.offboard.guidance``)."""
+
+    integral_gain_per_s2: float = Field(
+        0.0, ge=0.0, le=10.0, description="K_I: integral action on the position error; 0: none, 1/s²"
+    )
+    inconsistency_tau_s: float = Field(
+        0.0,
+        ge=0.0,
+        le=10.0,
+        description="low-pass of d̂ = d(pos)/dt − vel of the autopilot's estimate, cancelled in the setpoint; 0: off, s",
+    )
+    velocity_error_gain: float = Field(
+        0.0, ge=0.0, le=5.0, description="K_v: v_sp += K_v (v_sp − v̂) horizontally; 0: off"
+    )
+
+
 class GuidanceSettings(_Model):
     approach_speed_max_mps: float = Field(
         2.0, ge=0.1, le=15.0, description="U_a,max of constant-bearing guidance (thesis eq. 2.21), m/s"
@@ -76,6 +93,24 @@ class GuidanceSettings(_Model):
         ge=0.0,
         le=2.0,
         description="target-acceleration feed-forward τ_lead, ≈ the autopilot velocity-loop lag; 0: thesis law, s",
+    )
+    integral_max_mps: float = Field(0.5, ge=0.0, le=3.0, description="bound of the integral term, m/s")
+    integral_within_m: float = Field(
+        1.0, gt=0.0, le=20.0, description="integrate the position error only this close to the target, m"
+    )
+    inconsistency_max_mps: float = Field(0.5, ge=0.0, le=2.0, description="bound of d̂ per axis, m/s")
+    velocity_error_max_mps: float = Field(
+        1.0, ge=0.0, le=5.0, description="bound of the velocity-error feedback ‖K_v (v_sp − v̂)‖, m/s"
+    )
+    px4: AutopilotCompensation = Field(
+        default_factory=lambda: AutopilotCompensation(
+            integral_gain_per_s2=3.0, inconsistency_tau_s=0.2, velocity_error_gain=2.0
+        ),
+        description="compensation for PX4 (offboard velocity control is a velocity loop only)",
+    )
+    ardupilot: AutopilotCompensation = Field(
+        default_factory=AutopilotCompensation,
+        description="compensation for ArduPilot (GUIDED tracks a position target of its own: none needed)",
     )
     setpoint_rate_hz: float = Field(50.0, ge=20.0, le=100.0, description="offboard setpoint loop rate, Hz")
     exit_zero_s: float = Field(

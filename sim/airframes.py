@@ -8,30 +8,56 @@ the velocity against each recording.
 - ``PX4_SIH``: PX4's own velocity PID with its default gains (``MultirotorParams`` defaults:
   MPC_XY_VEL_P/I/D_ACC 1.8 / 0.4 / 0.2, MPC_Z_VEL_P/I_ACC 4 / 2) on SIH's plant with linear drag
   k = SIH_KDV / SIH_MASS = 1 s⁻¹. No free parameter; RMS residual 0.057 / 0.072 / 0.042 m/s (n / e / d).
-- ``ARDUCOPTER``: ArduCopter's position controller shapes the commanded velocity (delay, then a double
-  first-order lag: T_d 0.14 / 0.24 / 0.18 s and τ 0.25 / 0.28 / 0.20 s fit the recording on their own);
-  here the shaped setpoint is tracked by a stiff PID (P 8, I 4 horizontally; 12, 6 vertically), whose own
-  lag of ~0.08 s is taken off the delays. RMS residual 0.030 / 0.038 / 0.025 m/s. **Open loop only**: flown
-  by the circle mission (in process, calm) it gives p95 0.87 m where real ArduCopter SITL gives 0.012 m.
-  ArduCopter's GUIDED velocity control also integrates the shaped velocity into a position target that its
-  position loop tracks; without that, the app's position loop around ~0.5 s of shaping lag limit-cycles.
-  To be modelled (issue 10).
+- ``ARDUCOPTER``: ArduCopter's GUIDED velocity control with its 4.x defaults (``sim.poscontrol``): the
+  setpoint is shaped into a jerk-limited trajectory (PSC_JERK_XY 5 m/s³, WPNAV_ACCEL 2.5 m/s²; Z 5 / 1)
+  integrated into a position target, tracked by PSC_POSXY_P 1 and the velocity PID PSC_VELXY_P/I 2 / 1
+  (D 0: ArduCopter's D acts on the velocity error, which the acceleration feed-forward keeps small; ours
+  would act on the whole measured acceleration). No fitted parameter; RMS residual 0.028 / 0.024 /
+  0.020 m/s, below the README's delay + double-lag fit (0.030 / 0.038 / 0.025). The circle mission flown
+  on it (in process, calm) tracks at p95 0.0085 m, where real ArduCopter SITL gave 0.012 m.
 - ``DEFAULT``: what the simulator flew before calibration (drag 0.3 s⁻¹, no shaping). It stays the default
   for now: the guidance is not yet robust to ``PX4_SIH``'s slow integrator mode (issue 10).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+from sim import estimator
+from sim.autopilot_modes import Profile
 from sim.dynamics import MultirotorParams
+from sim.estimator import EstimatorErrorParams
+from sim.poscontrol import PosControlParams
 
 DEFAULT = MultirotorParams()
-PX4_SIH = MultirotorParams(drag_per_s=1.0)
+PX4 = MultirotorParams(tilt_max_deg=45.0)
+PX4_SIH = MultirotorParams(drag_per_s=1.0, tilt_max_deg=45.0)
 ARDUCOPTER = MultirotorParams(
-    xy_vel_p_acc=8.0,
-    xy_vel_i_acc=4.0,
+    xy_vel_p_acc=2.0,
+    xy_vel_i_acc=1.0,
     xy_vel_d_acc=0.0,
-    z_vel_p_acc=12.0,
-    z_vel_i_acc=6.0,
-    shaping_delay_s=(0.06, 0.16, 0.10),
-    shaping_tau_s=(0.25, 0.28, 0.20),
+    z_vel_p_acc=5.0,
+    z_vel_i_acc=2.0,
+    pos_control=PosControlParams(),
 )
+
+
+@dataclass(frozen=True, slots=True)
+class SimProfile:
+    """What ``--sim-profile`` selects: the MAVLink dialect, the airframe and the estimator error."""
+
+    autopilot: Profile
+    airframe: MultirotorParams
+    estimator: EstimatorErrorParams
+
+
+SIM_PROFILES: dict[str, SimProfile] = {
+    "px4": SimProfile(Profile.PX4, PX4, estimator.GNSS),
+    "px4-sih": SimProfile(Profile.PX4, PX4_SIH, estimator.PX4_SIH),
+    "ardupilot": SimProfile(Profile.ARDUPILOT, ARDUCOPTER, estimator.GNSS),
+}
+
+
+def default_for(autopilot: Profile) -> SimProfile:
+    """The calibrated profile a simulated ``autopilot`` flies unless told otherwise."""
+    return SIM_PROFILES["ardupilot" if autopilot is Profile.ARDUPILOT else "px4"]

@@ -7,7 +7,7 @@ MAVSDK listens and taking mode switches from a pilot tool (``sim.pilot``) on ``-
 
 CLI::
 
-    python -m sim.autopilot --udp 127.0.0.1:14540 [--pilot-port 14580] [--profile px4|ardupilot]
+    python -m sim.autopilot --udp 127.0.0.1:14540 [--pilot-port 14580] [--profile px4|px4-sih|ardupilot]
         [--seed N] [--wind-mps 5] [--gust-mps 1] [--wind-from-deg 240] [--no-wind]
         [--state-log FILE] [--home LAT,LON,ALT] [--param NAME=VALUE ...]
 
@@ -26,8 +26,10 @@ import threading
 from types import FrameType
 
 from app.cli import OneLineParser, number, run_cli
+from sim.airframes import SIM_PROFILES
 from sim.autopilot_endpoint import SimAutopilot, SimConfig
-from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, Profile
+from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint
+from sim.estimator import ESTIMATORS
 from sim.wind import WindConfig
 
 __all__ = ["SimAutopilot", "SimConfig", "config_from_args", "main"]
@@ -69,7 +71,15 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument(
         "--pilot-port", type=number(0, 65535, "", int), default=14580, help="pilot/GCS UDP port on 127.0.0.1; 0 = off"
     )
-    ap.add_argument("--profile", choices=[p.value for p in Profile], default=Profile.PX4.value)
+    ap.add_argument(
+        "--profile",
+        choices=list(SIM_PROFILES),
+        default="px4",
+        help="calibrated autopilot: PX4 on a real airframe, PX4 SIH as recorded, ArduCopter (sim.airframes)",
+    )
+    ap.add_argument(
+        "--estimator", choices=list(ESTIMATORS), default=None, help="estimator error (default: the profile's)"
+    )
     ap.add_argument("--seed", type=int, default=0)
     speed = number(0.0, 30.0, "m/s")
     ap.add_argument("--wind-mps", type=speed, default=_WIND.mean_mps, help="mean wind speed, m/s")
@@ -99,7 +109,9 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
     return SimConfig(
         target=(host, port),
         pilot_port=args.pilot_port or None,
-        profile=Profile(args.profile),
+        profile=SIM_PROFILES[args.profile].autopilot,
+        airframe=SIM_PROFILES[args.profile].airframe,
+        estimator=ESTIMATORS[args.estimator] if args.estimator else SIM_PROFILES[args.profile].estimator,
         seed=args.seed,
         wind=wind,
         origin=origin,

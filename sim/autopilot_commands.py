@@ -201,7 +201,7 @@ class CommandHandler:
 
     def _reposition_target(self, cmd: Command) -> tuple[float, float, float]:
         st = self.stack
-        here = st.dyn.state.pos_ned_m
+        here = st.dyn.estimate.pos_ned_m
         lat, lon, alt = cmd.params[4], cmd.params[5], cmd.params[6]
         if cmd.frame is not None:  # COMMAND_INT: x, y in degE7
             lat, lon = lat / 1e7, lon / 1e7

@@ -28,11 +28,13 @@ from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from sim import airframes
 from sim.autopilot_commands import DATA_STREAMS, Command, CommandHandler
 from sim.autopilot_link import Address, Link, open_links
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, Profile, mode_from_custom
 from sim.autopilot_telemetry import DEFAULT_RATES_HZ, STREAMABLE, Message, TelemetryEncoder
-from sim.dynamics import Dynamics
+from sim.dynamics import Dynamics, MultirotorParams
+from sim.estimator import EstimatorError, EstimatorErrorParams
 from sim.flight_stack import FlightStack
 from sim.stack_types import PositionTarget, StackEvent, Truth
 from sim.state_log import StateLog
@@ -58,6 +60,8 @@ class SimConfig:
     tick_hz: float = 100.0  # wake-ups of the loop; the physics substeps at 200 Hz within each
     gps_fix_delay_s: float = 1.0
     params: dict[str, float] | None = None
+    airframe: MultirotorParams | None = None  # None: the calibrated airframe for ``profile`` (sim.airframes)
+    estimator: EstimatorErrorParams | None = None  # None: the calibrated estimator error for ``profile``
 
 
 class SimAutopilot:
@@ -67,7 +71,12 @@ class SimAutopilot:
         self.config = c = config if config is not None else SimConfig()
         self._main, self._pilot = open_links(c.target, c.pilot_port)
         self._state_log: StateLog | None = StateLog(c.state_log) if c.state_log else None
-        dynamics = Dynamics(wind=Wind(c.wind, seed=c.seed))
+        calibrated = airframes.default_for(c.profile)
+        dynamics = Dynamics(
+            c.airframe if c.airframe is not None else calibrated.airframe,
+            Wind(c.wind, seed=c.seed),
+            estimator=EstimatorError(c.estimator if c.estimator is not None else calibrated.estimator, c.seed),
+        )
         self.stack = FlightStack(dynamics, c.profile, c.origin, c.params, c.gps_fix_delay_s, on_event=self._on_event)
         self.encoder = TelemetryEncoder(self.stack)
         self.commands = CommandHandler(self.stack, self.encoder, self._set_interval, self._get_interval)

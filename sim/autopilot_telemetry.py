@@ -184,13 +184,13 @@ class TelemetryEncoder:
         return self._mav.extended_sys_state_encode(MSG.MAV_VTOL_STATE_UNDEFINED, _LANDED[self.stack.landed_state])
 
     def local_position_ned(self) -> Message:
-        s = self.stack.dyn.state
+        s = self.stack.dyn.estimate
         p, v = s.pos_ned_m, s.vel_ned_mps
         return self._mav.local_position_ned_encode(self._ms(), p[0], p[1], p[2], v[0], v[1], v[2])
 
     def global_position_int(self) -> Message:
         st = self.stack
-        s = st.dyn.state
+        s = st.dyn.estimate
         geo = st.origin.offset(s.pos_ned_m)
         home_down_m = st.home_ned_m[2] if st.home_ned_m else 0.0
         v = s.vel_ned_mps
@@ -218,7 +218,7 @@ class TelemetryEncoder:
 
     def gps_raw_int(self) -> Message:
         st = self.stack
-        s = st.dyn.state
+        s = st.dyn.estimate
         geo = st.origin.offset(s.pos_ned_m)
         fix = 3 if st.gps_ok else 1
         v = s.vel_ned_mps
@@ -288,7 +288,7 @@ class TelemetryEncoder:
 
     def vfr_hud(self) -> Message:
         st = self.stack
-        s = st.dyn.state
+        s = st.dyn.estimate
         v, w = s.vel_ned_mps, s.wind_ned_mps
         air_mps = math.hypot(v[0] - w[0], v[1] - w[1])
         throttle = int(min(100.0, 50.0 * s.thrust_mps2 / 9.80665))

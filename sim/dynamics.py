@@ -8,7 +8,8 @@ Model per step (PX4 ``PositionControl::_velocityControl`` / ``_accelerationContr
 
     e     = v_sp − v
     a_sp  = K_p e + ∫K_i e − K_d a              (PID on acceleration, MPC_*_VEL_*_ACC)
-    |a_sp,xy| ≤ MPC_ACC_HOR_MAX                 tracking anti-windup: e_I = e − (2/K_p)(a_sp − a_lim)
+    |a_sp,xy| ≤ (g − a_sp,z)·tan(MPC_TILT_MAX_AIR)   vertical first; tracking anti-windup horizontally:
+                                                e_I = e − (2/K_p)(a_sp − a_lim)
     z_b,sp = normalize(−a_x, −a_y, g − a_z)     tilt-limited to MPC_TILT_MAX
     T      = (g − a_z) / cos(tilt_sp)           collective specific thrust, ≤ thrust_to_weight·g
     φ, θ  ← first-order lag (τ) towards the setpoint attitude; ψ rate-limited towards ψ_sp
@@ -17,16 +18,18 @@ Model per step (PX4 ``PositionControl::_velocityControl`` / ``_accelerationContr
 The hover thrust is known exactly (feed-forward g), so the integrators only have to reject drag and
 wind, which is what they do in PX4 too (there the hover-thrust estimator takes care of g).
 
-Optional input shaping (ArduCopter's position controller shapes the commanded velocity before its PID):
-per axis, the setpoint is delayed by ``shaping_delay_s`` and passed through two first-order lags of
-``shaping_tau_s``; the PID then tracks the shaped setpoint. ``sim.airframes`` holds calibrated sets.
+Optional ArduCopter position control (``pos_control``, see ``sim.poscontrol``): the velocity setpoint is
+shaped into a jerk-limited trajectory and integrated into a position target; the PID tracks
+K_pos·(p_target − p) + v_des with a_des as feed-forward. ``sim.airframes`` holds calibrated sets.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
+from sim.estimator import EstimatorError
+from sim.poscontrol import GuidedVelocityShaper, PosControlParams
 from sim.wind import Vec3, Wind
 
 G_MPS2 = 9.80665
@@ -55,7 +58,6 @@ class MultirotorParams:
     xy_vel_d_acc: float = 0.2  # MPC_XY_VEL_D_ACC, s (on the measured acceleration)
     z_vel_p_acc: float = 4.0  # MPC_Z_VEL_P_ACC
     z_vel_i_acc: float = 2.0  # MPC_Z_VEL_I_ACC
-    acc_hor_max_mps2: float = 5.0  # MPC_ACC_HOR_MAX
     acc_up_max_mps2: float = 4.0  # MPC_ACC_UP_MAX
     acc_down_max_mps2: float = 3.0  # MPC_ACC_DOWN_MAX
     tilt_max_deg: float = 35.0  # MPC_TILT_MAX_AIR
@@ -70,8 +72,7 @@ class MultirotorParams:
     yaw_rate_max_dps: float = 60.0  # MPC_YAWRAUTO_MAX-ish
     drag_per_s: float = 0.3  # linear drag towards the air-relative velocity
     thrust_to_weight: float = 2.0
-    shaping_delay_s: Vec3 | None = None  # input shaping: setpoint delay per axis (None: no shaping)
-    shaping_tau_s: Vec3 = (0.0, 0.0, 0.0)  # input shaping: the two lags' time constant per axis
+    pos_control: PosControlParams | None = None  # ArduCopter GUIDED trajectory + position target (None: PX4)
     battery: BatteryParams = field(default_factory=BatteryParams)
 
 
@@ -81,13 +82,15 @@ class ControlInput:
 
     ``vel_sp_ned_mps`` is the velocity setpoint (NED, m/s); ``yaw_sp_rad`` an absolute yaw or ``None``
     to keep the heading; ``yaw_rate_sp_radps`` overrides it when given. ``motors_on`` False = no thrust
-    (disarmed, or spinning at idle on the ground).
+    (disarmed, or spinning at idle on the ground). ``shaped`` False: the velocity comes from the autopilot's
+    own position modes (takeoff, hold, land, RTL), which ArduCopter does not pass through its velocity shaping.
     """
 
     vel_sp_ned_mps: Vec3 = (0.0, 0.0, 0.0)
     yaw_sp_rad: float | None = None
     yaw_rate_sp_radps: float | None = None
     motors_on: bool = True
+    shaped: bool = True  # a velocity setpoint from outside (ArduCopter shapes it); False: the autopilot's own modes
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,8 +177,11 @@ class Dynamics:
         wind: Wind | None = None,
         pos_ned_m: Vec3 = (0.0, 0.0, 0.0),
         yaw_rad: float = 0.0,
+        estimator: EstimatorError | None = None,
     ) -> None:
+        """``estimator`` None: the controller and ``estimate`` see the truth."""
         self.params = params if params is not None else MultirotorParams()
+        self.estimator = estimator
         self.wind = wind if wind is not None else Wind.off()
         self.battery = Battery(self.params.battery)
         self.ground_down_m = 0.0  # the ground/sea surface under the vehicle (home level)
@@ -187,7 +193,7 @@ class Dynamics:
         self._yaw_rad = yaw_rad
         self._rates = (0.0, 0.0, 0.0)
         self._vel_int = [0.0, 0.0, 0.0]
-        self._shaper = _Shaper(self.params) if self.params.shaping_delay_s is not None else None
+        self._shaper = GuidedVelocityShaper(self.params.pos_control) if self.params.pos_control is not None else None
         self._thrust_mps2 = 0.0
         self._on_ground = self._p[2] >= self.ground_down_m
         self._wind_ned_mps = self.wind.wind_ned_mps
@@ -209,6 +215,16 @@ class Dynamics:
         )
 
     @property
+    def estimate(self) -> VehicleState:
+        """What the autopilot believes: the truth with the estimator's error (the velocity error is
+        dropped while on the ground, where EKF2/EKF3 fuse zero velocity)."""
+        if self.estimator is None:
+            return self.state
+        s = self.state
+        pos, vel = self.estimator.apply(s.pos_ned_m, s.vel_ned_mps)
+        return replace(s, pos_ned_m=pos, vel_ned_mps=s.vel_ned_mps if s.on_ground else vel)
+
+    @property
     def vel_int_ned_mps2(self) -> Vec3:
         """The velocity-controller integrator (the acceleration it adds to reject drag/wind)."""
         i = self._vel_int
@@ -222,30 +238,38 @@ class Dynamics:
         """Begin in flight at ``vel_ned_mps`` (for replays that start mid-air)."""
         self._on_ground = False
         self._v = list(vel_ned_mps)
+        if self._shaper is not None:
+            self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
 
     def reset_integrators(self) -> None:
         self._vel_int = [0.0, 0.0, 0.0]
 
     # -- the controller ------------------------------------------------------------------------
 
-    def _acceleration_setpoint(self, vel_sp: Vec3, dt_s: float) -> tuple[float, float, float]:
-        """PID on acceleration with limits and anti-windup; returns a_sp (NED, m/s²)."""
+    def _acceleration_setpoint(
+        self, vel_sp: Vec3, dt_s: float, acc_ff: Vec3 = (0.0, 0.0, 0.0)
+    ) -> tuple[float, float, float]:
+        """PID (+ feed-forward ``acc_ff``) on acceleration with limits and anti-windup; a_sp (NED, m/s²)."""
         pr = self.params
         v_h = math.hypot(vel_sp[0], vel_sp[1])
         vn_sp, ve_sp = vel_sp[0], vel_sp[1]
         if v_h > pr.vel_hor_max_mps:
             vn_sp, ve_sp = vn_sp * pr.vel_hor_max_mps / v_h, ve_sp * pr.vel_hor_max_mps / v_h
         vd_sp = _clamp(vel_sp[2], -pr.vel_up_max_mps, pr.vel_down_max_mps)
-        e = (vn_sp - self._v[0], ve_sp - self._v[1], vd_sp - self._v[2])
+        v = self.estimate.vel_ned_mps  # the controller acts on the estimate
+        e = (vn_sp - v[0], ve_sp - v[1], vd_sp - v[2])
         # a_sp = K_p e + I − K_d a
-        ax = pr.xy_vel_p_acc * e[0] + self._vel_int[0] - pr.xy_vel_d_acc * self._a[0]
-        ay = pr.xy_vel_p_acc * e[1] + self._vel_int[1] - pr.xy_vel_d_acc * self._a[1]
-        az = pr.z_vel_p_acc * e[2] + self._vel_int[2]
+        ax = pr.xy_vel_p_acc * e[0] + self._vel_int[0] - pr.xy_vel_d_acc * self._a[0] + acc_ff[0]
+        ay = pr.xy_vel_p_acc * e[1] + self._vel_int[1] - pr.xy_vel_d_acc * self._a[1] + acc_ff[1]
+        az = pr.z_vel_p_acc * e[2] + self._vel_int[2] + acc_ff[2]
+        az_lim = _clamp(az, -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
+        # What the tilt limit lets through horizontally once the vertical is served (PX4: thrust_max_xy);
+        # MPC_ACC_HOR_MAX shapes PX4's own trajectories, not offboard velocity control.
+        acc_h_max = (G_MPS2 - az_lim) * math.tan(math.radians(pr.tilt_max_deg))
         a_h = math.hypot(ax, ay)
         ax_lim, ay_lim = ax, ay
-        if a_h > pr.acc_hor_max_mps2:
-            ax_lim, ay_lim = ax * pr.acc_hor_max_mps2 / a_h, ay * pr.acc_hor_max_mps2 / a_h
-        az_lim = _clamp(az, -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
+        if a_h > acc_h_max:
+            ax_lim, ay_lim = ax * acc_h_max / a_h, ay * acc_h_max / a_h
         if not self._on_ground:
             # Tracking anti-windup horizontally: e_I = e − (2/K_p)(a_sp − a_lim)
             arw = 2.0 / pr.xy_vel_p_acc
@@ -257,9 +281,9 @@ class Dynamics:
             self._vel_int[1] += pr.xy_vel_i_acc * ei_y * dt_s
             self._vel_int[2] += pr.z_vel_i_acc * ei_z * dt_s
             i_h = math.hypot(self._vel_int[0], self._vel_int[1])
-            if i_h > pr.acc_hor_max_mps2:
-                self._vel_int[0] *= pr.acc_hor_max_mps2 / i_h
-                self._vel_int[1] *= pr.acc_hor_max_mps2 / i_h
+            if i_h > acc_h_max:
+                self._vel_int[0] *= acc_h_max / i_h
+                self._vel_int[1] *= acc_h_max / i_h
             self._vel_int[2] = _clamp(self._vel_int[2], -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
         return ax_lim, ay_lim, az_lim
 
@@ -297,14 +321,22 @@ class Dynamics:
         self._wind_ned_mps = wind
         roll0, pitch0, yaw0 = self._roll_rad, self._pitch_rad, self._yaw_rad
 
+        if self.estimator is not None:
+            self.estimator.step(dt_s)
         if control.motors_on:
-            vel_sp = control.vel_sp_ned_mps
+            vel_sp, acc_ff = control.vel_sp_ned_mps, (0.0, 0.0, 0.0)
             if self._shaper is not None:
-                vel_sp = self._shaper.step(dt_s, vel_sp, self._on_ground, self._v)
-            acc_sp = self._acceleration_setpoint(vel_sp, dt_s)
+                est = self.estimate
+                if self._on_ground or not control.shaped:  # the trajectory starts where the vehicle is
+                    self._shaper.reset(est.pos_ned_m, est.vel_ned_mps)
+                if control.shaped:
+                    vel_sp, acc_ff = self._shaper.step(dt_s, vel_sp, est.pos_ned_m)
+            acc_sp = self._acceleration_setpoint(vel_sp, dt_s, acc_ff)
             roll_sp, pitch_sp, thrust = self._attitude_setpoint(acc_sp)
         else:
             self.reset_integrators()
+            if self._shaper is not None:
+                self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
             roll_sp, pitch_sp, thrust = 0.0, 0.0, 0.0
         if self._on_ground and not control.motors_on:
             roll_sp = pitch_sp = 0.0
@@ -356,36 +388,3 @@ class Dynamics:
             wrap_pi(self._yaw_rad - yaw0) / dt_s,
         )
         self.battery.step(dt_s, thrust, control.motors_on, armed)
-
-
-class _Shaper:
-    """Per axis: a delay line of ``shaping_delay_s``, then two first-order lags of ``shaping_tau_s``.
-
-    Stepped at the physics rate; the delay line holds (time, setpoint) pairs. On the ground the shaper
-    follows the vehicle (nothing to shape while sitting still)."""
-
-    def __init__(self, params: MultirotorParams) -> None:
-        assert params.shaping_delay_s is not None
-        self._delay = params.shaping_delay_s
-        self._tau = params.shaping_tau_s
-        self._t = 0.0
-        self._queue: list[tuple[float, Vec3]] = []
-        self._lag1 = [0.0, 0.0, 0.0]
-        self._lag2 = [0.0, 0.0, 0.0]
-
-    def step(self, dt_s: float, vel_sp: Vec3, on_ground: bool, vel: list[float]) -> Vec3:
-        self._t += dt_s
-        self._queue.append((self._t, vel_sp))
-        oldest = self._t - max(self._delay) - dt_s
-        while len(self._queue) > 1 and self._queue[1][0] <= oldest:
-            self._queue.pop(0)
-        out = [0.0, 0.0, 0.0]
-        for i in range(3):
-            u = next((sp[i] for t, sp in reversed(self._queue) if t <= self._t - self._delay[i]), self._queue[0][1][i])
-            if on_ground:
-                self._lag1[i] = self._lag2[i] = vel[i]
-            k = 1.0 - math.exp(-dt_s / self._tau[i]) if self._tau[i] > 0.0 else 1.0
-            self._lag1[i] += k * (u - self._lag1[i])
-            self._lag2[i] += k * (self._lag1[i] - self._lag2[i])
-            out[i] = self._lag2[i]
-        return (out[0], out[1], out[2])

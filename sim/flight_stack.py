@@ -156,7 +156,7 @@ class FlightStack:
             return self._deny(denial)
         self.armed = True
         self.land_detector.on_arm(self.t_s)
-        self._set_home(self.dyn.state.pos_ned_m)
+        self._set_home(self.dyn.estimate.pos_ned_m)
         self.nav.hold_here()
         self._emit(StackEvent(self.t_s, "armed", reason="command", armed=True))
         return MavResult.ACCEPTED
@@ -176,7 +176,7 @@ class FlightStack:
         if not self.armed:
             return self._deny("Takeoff denied: disarmed")
         valid = altitude_m is not None and math.isfinite(altitude_m) and altitude_m > 0.0
-        p = self.dyn.state.pos_ned_m
+        p = self.dyn.estimate.pos_ned_m
         home_down_m = self.home_ned_m[2] if self.home_ned_m else 0.0
         if self.profile is Profile.ARDUPILOT:
             if self.mode is not Mode.AP_GUIDED:
@@ -243,7 +243,7 @@ class FlightStack:
             return
         if self.profile is Profile.ARDUPILOT and self.mode is not Mode.AP_GUIDED:
             return
-        s = self.dyn.state
+        s = self.dyn.estimate
         self._sp = target.resolve(s.pos_ned_m, s.yaw_rad)
         self._sp_t_s = self.t_s
         if self.profile is Profile.ARDUPILOT:
@@ -289,7 +289,7 @@ class FlightStack:
 
     def _tick(self, t_s: float, dt_s: float) -> None:
         if self.home_ned_m is None and self.gps_ok:
-            self._set_home(self.dyn.state.pos_ned_m)
+            self._set_home(self.dyn.estimate.pos_ned_m)
         self._failsafes(t_s)
         control = self._control(t_s)
         self.dyn.step(dt_s, control, armed=self.armed)
@@ -311,13 +311,15 @@ class FlightStack:
         yaw_rate_sp: float | None = None
         behaviour = self.mode.behaviour
         takeoff = self._taking_off()
+        shaped = False
         if takeoff:
             v, done = self.nav.takeoff_velocity()
             if done:
                 self._takeoff_done()
         elif behaviour is Behaviour.OFFBOARD and (self.mode is Mode.OFFBOARD or self._guided_sub == "setpoint"):
             sp = self._sp or ResolvedSetpoint.zero()
-            v = sp.velocity(self.dyn.state.pos_ned_m, pr.xy_pos_p, pr.z_pos_p, self.tuning.cruise_mps())
+            v = sp.velocity(self.dyn.estimate.pos_ned_m, pr.xy_pos_p, pr.z_pos_p, self.tuning.cruise_mps())
+            shaped = sp.is_velocity
             if sp.yaw_rad is not None or sp.yaw_rate_radps is not None:
                 yaw_sp, yaw_rate_sp = sp.yaw_rad, sp.yaw_rate_radps
         elif behaviour is Behaviour.LAND:
@@ -326,7 +328,7 @@ class FlightStack:
             v = self.nav.rtl_velocity()
         else:
             v = self.nav.hold_velocity()
-        return ControlInput(v, yaw_sp, yaw_rate_sp, self._motors_on(t_s, v, takeoff))
+        return ControlInput(v, yaw_sp, yaw_rate_sp, self._motors_on(t_s, v, takeoff), shaped)
 
     def _taking_off(self) -> bool:
         """PX4 AUTO.TAKEOFF, or ArduCopter GUIDED in its takeoff sub-mode."""

@@ -42,8 +42,10 @@ from app.messages import (
     Vec3,
 )
 from app.offboard.watchdog import SetpointWatchdog
+from sim import airframes
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, MavResult, Mode, Profile, mode_for
 from sim.dynamics import Dynamics, MultirotorParams
+from sim.estimator import EstimatorError, EstimatorErrorParams
 from sim.flight_stack import FlightStack
 from sim.stack_types import PositionTarget, StackEvent, Truth
 from sim.state_log import StateLog
@@ -71,12 +73,19 @@ class InProcessVehicle:
         origin: GeoPoint = DEFAULT_ORIGIN,
         params: dict[str, float] | None = None,
         vehicle_params: MultirotorParams | None = None,
+        estimator: EstimatorErrorParams | None = None,
         physics_hz: float = 100.0,
         gps_fix_delay_s: float = 1.0,
         state_log: StateLog | None = None,
     ) -> None:
-        """``wind`` None = the default wind (5 m/s from 240°, 1 m/s gusts); ``WindConfig.off()`` = still air."""
-        dynamics = Dynamics(vehicle_params, Wind(wind if wind is not None else WindConfig(), seed=seed))
+        """``wind`` None = the default wind (5 m/s from 240°, 1 m/s gusts); ``WindConfig.off()`` = still air.
+        ``vehicle_params`` / ``estimator`` None = the calibrated ones for ``profile`` (``sim.airframes``)."""
+        calibrated = airframes.default_for(profile)
+        dynamics = Dynamics(
+            vehicle_params if vehicle_params is not None else calibrated.airframe,
+            Wind(wind if wind is not None else WindConfig(), seed=seed),
+            estimator=EstimatorError(estimator if estimator is not None else calibrated.estimator, seed),
+        )
         self.events: list[StackEvent] = []
         self.records: list[dict[str, Any]] = []
         self._state_log = state_log
@@ -119,7 +128,7 @@ class InProcessVehicle:
         if not st.started:
             return TelemetrySnapshot()
         t_s = st.t_s
-        s = st.dyn.state
+        s = st.dyn.estimate
         return TelemetrySnapshot(
             pos_vel=PositionVelocityNed(t_s, s.pos_ned_m, s.vel_ned_mps),
             attitude=AttitudeEuler(t_s, s.roll_rad, s.pitch_rad, s.yaw_rad),

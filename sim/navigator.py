@@ -31,7 +31,7 @@ class Navigator:
     def __init__(self, dynamics: Dynamics, tuning: Tuning) -> None:
         self.dyn = dynamics
         self.tuning = tuning
-        s = dynamics.state
+        s = dynamics.estimate
         self.hold_pos_ned_m: Vec3 = s.pos_ned_m
         self.yaw_hold_rad = s.yaw_rad
         self.braking = False
@@ -42,7 +42,7 @@ class Navigator:
 
     def hold_here(self) -> None:
         """Hold where the vehicle is (braking first when it is flying) and keep its heading."""
-        s = self.dyn.state
+        s = self.dyn.estimate
         self.hold_pos_ned_m = s.pos_ned_m
         self.yaw_hold_rad = s.yaw_rad
         self.braking = not s.on_ground
@@ -51,11 +51,11 @@ class Navigator:
         self.hold_pos_ned_m, self.braking = pos_ned_m, False
 
     def start_landing(self) -> None:
-        p = self.dyn.state.pos_ned_m
+        p = self.dyn.estimate.pos_ned_m
         self._land_xy_m = (p[0], p[1])
 
     def start_rtl(self, home_ned_m: Vec3, on_ground: bool) -> None:
-        p = self.dyn.state.pos_ned_m
+        p = self.dyn.estimate.pos_ned_m
         self._rtl_alt_down_m = min(p[2], home_ned_m[2] - self.tuning.rtl_alt_m())
         self.rtl_phase = "land" if on_ground else "climb"
         self._land_xy_m = (p[0], p[1]) if on_ground else (home_ned_m[0], home_ned_m[1])
@@ -63,12 +63,12 @@ class Navigator:
     def takeoff_velocity(self) -> tuple[Vec3, bool]:
         """Velocity towards the takeoff target, and whether it has been reached."""
         assert self.takeoff_target_ned_m is not None
-        target, p = self.takeoff_target_ned_m, self.dyn.state.pos_ned_m
+        target, p = self.takeoff_target_ned_m, self.dyn.estimate.pos_ned_m
         v = velocity_from_position(target, p, self.dyn.params, max_up_mps=self.tuning.takeoff_speed_mps())
         return v, p[2] - target[2] <= TAKEOFF_DONE_M
 
     def hold_velocity(self) -> Vec3:
-        s = self.dyn.state
+        s = self.dyn.estimate
         p = s.pos_ned_m
         if self.braking:
             if math.hypot(s.vel_ned_mps[0], s.vel_ned_mps[1]) > BRAKED_MPS:
@@ -78,7 +78,7 @@ class Navigator:
         return velocity_from_position(self.hold_pos_ned_m, p, self.dyn.params, self.tuning.cruise_mps())
 
     def landing_velocity(self) -> Vec3:
-        p = self.dyn.state.pos_ned_m
+        p = self.dyn.estimate.pos_ned_m
         target = (self._land_xy_m[0], self._land_xy_m[1], p[2])
         v = velocity_from_position(target, p, self.dyn.params, self.tuning.cruise_mps())
         return (v[0], v[1], self.tuning.land_speed_mps(self.dyn.ground_down_m - p[2]))
@@ -86,7 +86,7 @@ class Navigator:
     def rtl_velocity(self) -> Vec3:
         if self.rtl_phase == "land":
             return self.landing_velocity()
-        s = self.dyn.state
+        s = self.dyn.estimate
         p = s.pos_ned_m
         if self.rtl_phase == "climb":
             target = (self.hold_pos_ned_m[0], self.hold_pos_ned_m[1], self._rtl_alt_down_m)

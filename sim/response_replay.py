@@ -59,7 +59,7 @@ def replay(rec: Recording, params: MultirotorParams, dt_s: float = 0.005) -> np.
             h = min(dt_s, t_next - t_s)
             dyn.step(h, control)
             t_s += h
-        out[i] = dyn.state.vel_ned_mps
+        out[i] = dyn.estimate.vel_ned_mps
     return out
 
 

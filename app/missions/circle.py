@@ -19,18 +19,22 @@ from app.stats import percentile
 
 @dataclass
 class TrackingErrors:
-    """Tracking-error samples after convergence (3-D and horizontal), metres."""
+    """Tracking-error samples after convergence (3-D, horizontal and vertical), metres."""
 
     err_m: list[float] = field(default_factory=list)
     err_horizontal_m: list[float] = field(default_factory=list)
+    err_vertical_m: list[float] = field(default_factory=list)  # |down error|
 
     def summary(self) -> dict[str, float | int | None]:
-        err, err_h = sorted(self.err_m), sorted(self.err_horizontal_m)
+        err, err_h, err_v = sorted(self.err_m), sorted(self.err_horizontal_m), sorted(self.err_vertical_m)
         return {
             "tracking_error_p50_m": percentile(err, 0.50),
             "tracking_error_p95_m": percentile(err, 0.95),
             "tracking_error_max_m": err[-1] if err else None,
+            "tracking_error_horizontal_p50_m": percentile(err_h, 0.50),
             "tracking_error_horizontal_p95_m": percentile(err_h, 0.95),
+            "tracking_error_vertical_p50_m": percentile(err_v, 0.50),
+            "tracking_error_vertical_p95_m": percentile(err_v, 0.95),
             "tracking_samples": len(self.err_m),
         }
 
@@ -80,3 +84,4 @@ class CircleTarget:
         dn, de, dd = p[0] - t[0], p[1] - t[1], p[2] - t[2]
         self.errors.err_m.append(math.sqrt(dn * dn + de * de + dd * dd))
         self.errors.err_horizontal_m.append(math.hypot(dn, de))
+        self.errors.err_vertical_m.append(abs(dd))

@@ -9,6 +9,27 @@ Optional lead (off when ``velocity_lead_s`` = 0, the thesis law): the autopilot'
 setpoint by roughly its time constant τ, so a target that turns is followed with a lag of τ·a_t. Adding
 ``velocity_lead_s · a_t`` to the feed-forward (v_d = v_a + v_t + τ_lead·a_t) cancels most of that lag.
 
+Optional integral action (off when ``integral_gain_per_s2`` = 0): real autopilots do not deliver the
+velocity they are sent. PX4's velocity PID leaves 20–30 % of a step missing for seconds (its slow integrator
+mode) and its estimate carries a slowly varying velocity error and a vertical bias, so a proportional
+position loop keeps a position error of (velocity shortfall)/gain. ``PositionIntegral`` adds
+
+    v_I ← v_I − K_I · p̃ · dt                   only while ‖p̃‖ < integrate_within_m and the last setpoint
+                                                 went out unclamped (conditional integration: anti-windup)
+    ‖v_I,h‖ ≤ v_I,max,   |v_I,d| ≤ v_I,max       and it restarts at zero on every change of target source
+    v_d = v_a + v_t + τ_lead·a_t + v_I
+
+Two more terms live in the setpoint loop, which sees the telemetry stream (``app.offboard.setpoint_loop``):
+- the estimate-inconsistency observer d̂ = low-pass(dp̂/dt − v̂), subtracted from the setpoint: the
+  autopilot steers its velocity *estimate* to the setpoint, so when the estimate is off (PX4 SIH: 0.2 m/s
+  RMS) the reported position moves at v_sp + d̂;
+- horizontal velocity-error feedback v_sp + K_v (v_sp − v̂) (its norm ≤ ``velocity_error_max_mps``, so an
+  approach does not become more aggressive than guidance + 1 m/s) for autopilots whose offboard velocity control
+  is a velocity loop only (PX4): it stiffens that loop from outside (PX4's default MPC_XY_VEL_P_ACC 1.8
+  leaves a gust's velocity error standing for a second, and 20–30 % of a step for seconds). ArduCopter
+  integrates velocity setpoints into a position target of its own, so there K_v = 0 (feedback would fight
+  its trajectory shaping: the circle's p95 went from 0.03 to 0.43 m with K_v = 1).
+
 Far from the target the vehicle closes at U_a,max; within Δ the approach speed falls off linearly
 (κ ≈ U_a,max·‖p̃‖/Δ), so near the target the law is a proportional controller with gain U_a,max/Δ plus
 the target-velocity feed-forward. Saturation to the vehicle's limits is the envelope's job.
@@ -27,6 +48,13 @@ class ConstantBearingParams:
     approach_speed_max_mps: float  # U_a,max
     transient_distance_m: float  # Δ_p̃
     velocity_lead_s: float = 0.0  # τ_lead: target-acceleration feed-forward, s (0: thesis eq. 2.19)
+    integral_gain_per_s2: float = 0.0  # K_I on the position error, 1/s² (0: no integral action)
+    integral_max_mps: float = 0.5  # v_I,max, per horizontal norm and vertically, m/s
+    integral_within_m: float = 1.0  # integrate only this close to the target, m
+    inconsistency_tau_s: float = 0.0  # low-pass of the estimate-inconsistency observer, s (0: off)
+    inconsistency_max_mps: float = 0.5  # its bound per axis, m/s
+    velocity_error_gain: float = 0.0  # K_v: horizontal v_sp += K_v (v_sp − v̂), for velocity-only autopilots
+    velocity_error_max_mps: float = 1.0  # bound of ‖K_v (v_sp − v̂)‖, m/s
 
 
 def approach_speed_mps(distance_m: float, params: ConstantBearingParams) -> float:
@@ -69,3 +97,34 @@ def constant_bearing_velocity(
         -kappa * p_err[1] / dist_m + target_vel_ned_mps[1],
         -kappa * p_err[2] / dist_m + target_vel_ned_mps[2],
     )
+
+
+class PositionIntegral:
+    """The integral term ``v_I`` of the position loop (see the module docstring); the caller resets it."""
+
+    def __init__(self, params: ConstantBearingParams) -> None:
+        self._params = params
+        self.v_ned_mps: Vec3 = (0.0, 0.0, 0.0)
+
+    def reset(self) -> None:
+        self.v_ned_mps = (0.0, 0.0, 0.0)
+
+    def update(self, pos_err_ned_m: Vec3, dt_s: float, *, saturated: bool) -> Vec3:
+        """Integrate the position error p̃ = p − p_t over ``dt_s``; returns v_I (NED, m/s)."""
+        p = self._params
+        if p.integral_gain_per_s2 <= 0.0:
+            return self.v_ned_mps
+        dist_m = math.sqrt(pos_err_ned_m[0] ** 2 + pos_err_ned_m[1] ** 2 + pos_err_ned_m[2] ** 2)
+        if saturated or dist_m >= p.integral_within_m or not 0.0 < dt_s < 1.0:
+            return self.v_ned_mps
+        k = p.integral_gain_per_s2 * dt_s
+        vn = self.v_ned_mps[0] - k * pos_err_ned_m[0]
+        ve = self.v_ned_mps[1] - k * pos_err_ned_m[1]
+        vd = self.v_ned_mps[2] - k * pos_err_ned_m[2]
+        v_max = p.integral_max_mps
+        v_h = math.hypot(vn, ve)
+        if v_h > v_max:
+            vn, ve = vn * v_max / v_h, ve * v_max / v_h
+        vd = max(-v_max, min(v_max, vd))
+        self.v_ned_mps = (vn, ve, vd)
+        return self.v_ned_mps

@@ -15,6 +15,7 @@ decision is written to the event log.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from enum import StrEnum
 from typing import Protocol
@@ -23,7 +24,7 @@ from app.clock import Clock, sleep_until
 from app.eventlog import EventLog
 from app.messages import PositionVelocityNed, TargetState, Vec3, norm, sub
 from app.offboard.boundary import VehicleBoundary
-from app.offboard.guidance import ConstantBearingParams, constant_bearing_velocity
+from app.offboard.guidance import ConstantBearingParams, PositionIntegral, constant_bearing_velocity
 from app.stats import percentile
 
 
@@ -76,6 +77,12 @@ class SetpointLoop:
         self._clock = clock
         self._events = events
         self._guidance = guidance
+        self._integral = PositionIntegral(guidance)
+        self._integral_source: object | None = None  # the target the integral was built on
+        self._integral_t_s: float | None = None
+        self._last_saturated = False
+        self._prev_sample: PositionVelocityNed | None = None
+        self.inconsistency_ned_mps: Vec3 = (0.0, 0.0, 0.0)  # d̂: how the reported position outruns v̂
         self._period_s = 1.0 / rate_hz
         self._standby_period_s = 1.0 / standby_rate_hz if standby_rate_hz > 0 else 0.0
         self._stale_s = position_stale_s
@@ -106,6 +113,7 @@ class SetpointLoop:
         if source is None and tel.pos_vel is not None:
             source = self._hold = FixedPoint("hold", tel.pos_vel.pos_ned_m)
         self._source = source
+        self._reset_integral(None)
         self._allow_below_min = allow_below_min
         self.mode = LoopMode.GUIDE
         self._events.write(self._clock.now_s(), "setpoint", decision="engage", source=source.name if source else None)
@@ -145,6 +153,7 @@ class SetpointLoop:
             clamped = await self._boundary.send_velocity(desired, self._yaw_rad, allow_below_min=self._allow_below_min)
             if clamped is None:
                 return
+            self._last_saturated = bool(clamped.limits)
             self._count_sent(now_s)
             self._events.write(
                 now_s,
@@ -166,11 +175,14 @@ class SetpointLoop:
         tel = self._boundary.telemetry()
         pv = tel.pos_vel
         if pv is None or now_s - pv.t_s > self._stale_s:
+            self._reset_integral(None)
             return (0.0, 0.0, 0.0), "stale_position_zero"
         source = self._source
-        if source is not None and pv.t_s != self._last_sample_t_s:
+        if pv.t_s != self._last_sample_t_s:
             self._last_sample_t_s = pv.t_s
-            source.observe(pv)
+            self._observe_inconsistency(pv)
+            if source is not None:
+                source.observe(pv)
         target = source.target_at(now_s) if source is not None else None
         why = "guide"
         if target is None:
@@ -188,11 +200,59 @@ class SetpointLoop:
             pv.pos_ned_m[1] + pv.vel_ned_mps[1] * dt_s,
             pv.pos_ned_m[2] + pv.vel_ned_mps[2] * dt_s,
         )
-        self._last_err_m = norm(sub(pos_now, target.pos_ned_m))
+        pos_err = sub(pos_now, target.pos_ned_m)
+        self._last_err_m = norm(pos_err)
         desired = constant_bearing_velocity(
             pos_now, target.pos_ned_m, target.vel_ned_mps, self._guidance, target.acc_ned_mps2
         )
-        return desired, why
+        v_i = self._integrate(now_s, self._hold if why == "hold" else source, pos_err)
+        d = self.inconsistency_ned_mps
+        vn, ve, vd = desired[0] + v_i[0] - d[0], desired[1] + v_i[1] - d[1], desired[2] + v_i[2] - d[2]
+        # Horizontal velocity-error feedback: v_sp + K_v (v_sp − v̂), its norm bounded (see guidance).
+        kv, v = self._guidance.velocity_error_gain, pv.vel_ned_mps
+        fn, fe = kv * (vn - v[0]), kv * (ve - v[1])
+        f_max, f = self._guidance.velocity_error_max_mps, math.hypot(fn, fe)
+        if f > f_max:
+            fn, fe = fn * f_max / f, fe * f_max / f
+        return (vn + fn, ve + fe, vd), why
+
+    def _observe_inconsistency(self, pv: PositionVelocityNed) -> None:
+        """d̂ = low-pass(dp̂/dt − v̂): the autopilot steers its velocity *estimate* to our setpoint, so when
+        its estimate is off, the reported position moves at v_sp + d̂; sending v_sp − d̂ cancels that."""
+        prev, self._prev_sample = self._prev_sample, pv
+        tau_s = self._guidance.inconsistency_tau_s
+        if tau_s <= 0.0 or prev is None:
+            return
+        dt_s = pv.t_s - prev.t_s
+        if not 0.0 < dt_s <= 0.2:  # a gap: start over
+            self.inconsistency_ned_mps = (0.0, 0.0, 0.0)
+            return
+        k = 1.0 - math.exp(-dt_s / tau_s)
+        d = self.inconsistency_ned_mps
+        raw = [
+            (pv.pos_ned_m[i] - prev.pos_ned_m[i]) / dt_s - 0.5 * (pv.vel_ned_mps[i] + prev.vel_ned_mps[i])
+            for i in range(3)
+        ]
+        lim = self._guidance.inconsistency_max_mps
+        self.inconsistency_ned_mps = (
+            max(-lim, min(lim, d[0] + k * (raw[0] - d[0]))),
+            max(-lim, min(lim, d[1] + k * (raw[1] - d[1]))),
+            max(-lim, min(lim, d[2] + k * (raw[2] - d[2]))),
+        )
+
+    def _integrate(self, now_s: float, target_source: object | None, pos_err: Vec3) -> Vec3:
+        """The position loop's integral term: restarts with every new target source."""
+        if target_source is not self._integral_source:
+            self._reset_integral(target_source)
+        dt_s = now_s - self._integral_t_s if self._integral_t_s is not None else 0.0
+        self._integral_t_s = now_s
+        return self._integral.update(pos_err, dt_s, saturated=self._last_saturated)
+
+    def _reset_integral(self, target_source: object | None) -> None:
+        self._integral.reset()
+        self._integral_source = target_source
+        self._integral_t_s = None
+        self._last_saturated = False
 
     def _count_sent(self, now_s: float) -> None:
         self.sent += 1

@@ -14,6 +14,7 @@ from pymavlink.dialects.v20 import development
 from sim import pilot
 from sim.autopilot import SimAutopilot, SimConfig
 from sim.autopilot_modes import Mode, Profile
+from sim.estimator import PERFECT
 from sim.wind import WindConfig
 from tests.sim.conftest import free_udp_port
 
@@ -158,6 +159,7 @@ def test_set_message_interval_changes_and_disables_a_stream(link: tuple[SimAutop
     assert gcs.command(MSG.MAV_CMD_SET_MESSAGE_INTERVAL, 12345, 100_000).result == MSG.MAV_RESULT_DENIED
 
 
+@pytest.mark.parametrize("link", [{"estimator": PERFECT}], indirect=True)  # home exactly at the origin
 def test_request_message_answers_home_and_autopilot_version(link: tuple[SimAutopilot, Gcs]) -> None:
     _, gcs = link
     gcs.wait("SYS_STATUS", where=lambda m: m.onboard_control_sensors_health & MSG.MAV_SYS_STATUS_PREARM_CHECK)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sim import airframes
@@ -42,3 +43,25 @@ def test_px4_sih_leaves_a_fifth_of_a_step_after_four_seconds():
     missing = 1.0 - float(v[tail, 0].mean())
     print(f"north step: {missing:.2f} of the step missing in its last second (recording: 0.23)")
     assert 0.15 <= missing <= 0.35
+
+
+def _drift_in_a_gust_m(params) -> float:
+    """Zero velocity commanded while a 5 m/s gust sets in: how far the vehicle ends up from where it was."""
+    from sim.dynamics import ControlInput, Dynamics
+    from sim.wind import Wind, WindConfig
+
+    dyn = Dynamics(params, Wind(WindConfig(mean_mps=5.0, gust_sigma_mps=0.0, vertical_sigma_mps=0.0)))
+    dyn._p = [0.0, 0.0, -10.0]  # airborne, at rest: the gust hits at t = 0
+    dyn.start_airborne((0.0, 0.0, 0.0))
+    for _ in range(3000):  # 30 s
+        dyn.step(0.01, ControlInput((0.0, 0.0, 0.0)))
+    n, e, _ = dyn.state.pos_ned_m
+    return float(np.hypot(n, e))
+
+
+def test_arducopter_guided_flies_back_to_its_position_target_px4_velocity_control_does_not():
+    """ArduCopter integrates velocity setpoints into a position target; PX4 offboard velocity does not."""
+    ardu, px4 = _drift_in_a_gust_m(airframes.ARDUCOPTER), _drift_in_a_gust_m(airframes.PX4_SIH)
+    print(f"zero velocity in a 5 m/s gust, 30 s: ArduCopter ends {ardu:.3f} m away, PX4 SIH {px4:.3f} m")
+    assert ardu < 0.05
+    assert px4 > 0.5

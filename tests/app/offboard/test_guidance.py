@@ -50,3 +50,40 @@ def test_lead_adds_tau_times_target_acceleration_to_the_feedforward():
     assert v == pytest.approx((1.0, -0.15, 0.0))
     # Without lead the acceleration is ignored (thesis eq. 2.19).
     assert constant_bearing_velocity((0, 0, 0), (0, 0, 0), (1.0, 0, 0), P, (0, -0.25, 0)) == (1.0, 0, 0)
+
+
+# ---- integral action on the position error (issue 10) ---------------------------------------------------
+
+from app.offboard.guidance import PositionIntegral  # noqa: E402
+
+PI = ConstantBearingParams(2.0, 0.4, integral_gain_per_s2=3.0, integral_max_mps=0.5, integral_within_m=1.0)
+
+
+def test_integral_builds_against_the_error_by_k_i_times_error_times_dt():
+    i = PositionIntegral(PI)
+    v = i.update((0.2, -0.1, 0.05), 0.02, saturated=False)  # 0.2 m north of the target ...
+    assert v == pytest.approx((-3.0 * 0.2 * 0.02, 3.0 * 0.1 * 0.02, -3.0 * 0.05 * 0.02))  # ... pushes south
+    v = i.update((0.2, -0.1, 0.05), 0.02, saturated=False)
+    assert v[0] == pytest.approx(-2 * 3.0 * 0.2 * 0.02)
+
+
+def test_integral_is_bounded_horizontally_by_norm_and_vertically():
+    i = PositionIntegral(PI)
+    for _ in range(10_000):
+        v = i.update((0.6, 0.6, -0.5), 0.02, saturated=False)
+    assert math.hypot(v[0], v[1]) == pytest.approx(0.5) and v[2] == pytest.approx(0.5)
+
+
+def test_integral_freezes_while_saturated_far_away_or_across_a_gap_and_resets():
+    i = PositionIntegral(PI)
+    v0 = i.update((0.2, 0.0, 0.0), 0.02, saturated=False)
+    assert i.update((0.2, 0.0, 0.0), 0.02, saturated=True) == v0  # the envelope clamped the last setpoint
+    assert i.update((1.5, 0.0, 0.0), 0.02, saturated=False) == v0  # beyond integral_within_m
+    assert i.update((0.2, 0.0, 0.0), 3.0, saturated=False) == v0  # a gap in the loop: no 3 s step
+    i.reset()
+    assert i.v_ned_mps == (0.0, 0.0, 0.0)
+
+
+def test_integral_off_by_default():
+    i = PositionIntegral(P)
+    assert i.update((0.5, 0.5, 0.5), 0.02, saturated=False) == (0.0, 0.0, 0.0)

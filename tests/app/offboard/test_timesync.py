@@ -15,6 +15,7 @@ from app.messages import AttitudeEuler, PositionVelocityNed
 from app.offboard.timesync import AUTOPILOT, RECEIPT, RemoteClock
 from app.settings import ConnectionSettings, TelemetrySettings
 from sim.autopilot import SimAutopilot, SimConfig
+from sim.estimator import PERFECT
 from sim.state_log import read_state_log
 from sim.wind import WindConfig
 from tests.sim.conftest import eventually, free_udp_port
@@ -113,7 +114,9 @@ async def test_adapter_positions_agree_with_truth_at_their_stamps_while_the_loop
 
     port = free_udp_port()
     truth_log = tmp_path / "truth.jsonl"
-    config = SimConfig(target=("127.0.0.1", port), pilot_port=None, wind=WindConfig.off(), state_log=str(truth_log))
+    config = SimConfig(  # a perfect estimate: what the autopilot reports is the truth the log holds
+        target=("127.0.0.1", port), pilot_port=None, wind=WindConfig.off(), state_log=str(truth_log), estimator=PERFECT
+    )
     sim = SimAutopilot(config)
     clock = LoopClock()
     seen: list[tuple[float, float, float]] = []  # every position sample: (stamp, read by the loop, down)

@@ -1,0 +1,113 @@
+"""The autopilot's state estimate: the truth plus a seeded, slowly varying error (what EKF2/EKF3 would report).
+
+A real autopilot controls and reports an *estimate*. Its velocity error is correlated over seconds, its
+vertical velocity may carry a bias, and its position drifts (GNSS wander, baro drift), and the estimate is
+not even consistent with itself: d(position)/dt differs from the reported velocity. Per axis::
+
+    e_v   ← Gauss–Markov(σ_v, τ_v)                       velocity error, m/s
+    v̂     = v + e_v + b_v                                b_v: constant velocity bias (NED, m/s)
+    ṙ     = Gauss–Markov(σ_r, τ_r)                       drift rate, m/s
+    ė_p   = ṙ − e_p / τ_leak                             position drift (bounded by the leak), m
+    p̂     = p + e_p
+
+Gauss–Markov: x ← x·e^{−dt/τ} + σ·√(1 − e^{−2dt/τ})·N(0, 1), stationary at σ (it starts drawn from
+that distribution). ``sim.dynamics`` runs its velocity controller on v̂ (and ArduCopter's position target on
+p̂), so the bias becomes a real drift of the vehicle that only the reported position reveals.
+
+Presets (``ESTIMATORS``):
+- ``perfect``: no error (unit tests of the dynamics and the old behaviour).
+- ``gnss`` (the default): a GNSS-aided EKF on a real airframe with a good receiver (u-blox M8/M9 class:
+  speed accuracy ~0.05 m/s, horizontal position wander of a few decimetres over minutes, baro drift of
+  a few decimetres): σ_v 0.05 / 0.03 m/s (h / v) with τ_v 3 s, a 0.02 m/s downward bias, position drift
+  rate σ_r 0.01 m/s with τ_r 10 s and a 60 s leak (σ_p = σ_r·τ_leak·√(τ_r/(τ_r + τ_leak)) ≈ 0.23 m).
+- ``px4-sih``: what PX4 SIH's EKF2 reported against SIH's truth in the recording
+  (``shared/reference/autopilot-response``): velocity error 0.22 / 0.27 m/s RMS north / east with a
+  correlation time of 3.6–3.9 s, vertical 0.135 m/s with 2.9 s and a +0.09 m/s (down) bias (README:
+  +0.08…+0.11; 0.11 over the whole step flight), position error within ±0.65 m of its start.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass
+
+from sim.wind import Vec3
+
+
+@dataclass(frozen=True, slots=True)
+class EstimatorErrorParams:
+    vel_sigma_mps: tuple[float, float] = (0.0, 0.0)  # horizontal (each axis), vertical
+    vel_tau_s: tuple[float, float] = (3.0, 3.0)
+    vel_bias_ned_mps: Vec3 = (0.0, 0.0, 0.0)
+    drift_rate_sigma_mps: tuple[float, float] = (0.0, 0.0)
+    drift_rate_tau_s: float = 10.0
+    drift_leak_tau_s: float = 60.0
+
+    def is_perfect(self) -> bool:
+        return (
+            self.vel_sigma_mps == (0.0, 0.0)
+            and self.vel_bias_ned_mps == (0.0, 0.0, 0.0)
+            and self.drift_rate_sigma_mps == (0.0, 0.0)
+        )
+
+
+PERFECT = EstimatorErrorParams()
+GNSS = EstimatorErrorParams(
+    vel_sigma_mps=(0.05, 0.03),
+    vel_tau_s=(3.0, 3.0),
+    vel_bias_ned_mps=(0.0, 0.0, 0.02),
+    drift_rate_sigma_mps=(0.01, 0.01),
+)
+PX4_SIH = EstimatorErrorParams(
+    vel_sigma_mps=(0.24, 0.135),
+    vel_tau_s=(3.7, 2.9),
+    vel_bias_ned_mps=(0.0, 0.0, 0.09),
+    drift_rate_sigma_mps=(0.03, 0.03),
+)
+ESTIMATORS: dict[str, EstimatorErrorParams] = {"perfect": PERFECT, "gnss": GNSS, "px4-sih": PX4_SIH}
+
+
+class _GaussMarkov:
+    def __init__(self, sigma: float, tau_s: float, rng: random.Random) -> None:
+        self.sigma, self.tau_s, self._rng = sigma, tau_s, rng
+        self.x = rng.gauss(0.0, sigma) if sigma > 0.0 else 0.0
+
+    def step(self, dt_s: float) -> float:
+        if self.sigma > 0.0:
+            a = math.exp(-dt_s / self.tau_s)
+            self.x = self.x * a + self.sigma * math.sqrt(1.0 - a * a) * self._rng.gauss(0.0, 1.0)
+        return self.x
+
+
+class EstimatorError:
+    """The error state; ``step`` advances it, ``apply`` turns the truth into the estimate."""
+
+    def __init__(self, params: EstimatorErrorParams, seed: int = 0) -> None:
+        self.params = params
+        rng = random.Random(f"estimator-{seed}")
+        (sh, sv), (th, tv) = params.vel_sigma_mps, params.vel_tau_s
+        self._vel = [_GaussMarkov(sh, th, rng), _GaussMarkov(sh, th, rng), _GaussMarkov(sv, tv, rng)]
+        rh, rv = params.drift_rate_sigma_mps
+        tr = params.drift_rate_tau_s
+        self._rate = [_GaussMarkov(rh, tr, rng), _GaussMarkov(rh, tr, rng), _GaussMarkov(rv, tr, rng)]
+        self.pos_err_m = [0.0, 0.0, 0.0]
+
+    @property
+    def vel_err_mps(self) -> Vec3:
+        b = self.params.vel_bias_ned_mps
+        return (self._vel[0].x + b[0], self._vel[1].x + b[1], self._vel[2].x + b[2])
+
+    def step(self, dt_s: float) -> None:
+        leak = self.params.drift_leak_tau_s
+        for i in range(3):
+            self._vel[i].step(dt_s)
+            rate = self._rate[i].step(dt_s)
+            self.pos_err_m[i] += (rate - self.pos_err_m[i] / leak) * dt_s
+
+    def apply(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> tuple[Vec3, Vec3]:
+        e_p, e_v = self.pos_err_m, self.vel_err_mps
+        return (
+            (pos_ned_m[0] + e_p[0], pos_ned_m[1] + e_p[1], pos_ned_m[2] + e_p[2]),
+            (vel_ned_mps[0] + e_v[0], vel_ned_mps[1] + e_v[1], vel_ned_mps[2] + e_v[2]),
+        )
