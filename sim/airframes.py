@@ -7,16 +7,21 @@ the velocity against each recording.
 
 - ``PX4_SIH``: PX4's own velocity PID with its default gains (``MultirotorParams`` defaults:
   MPC_XY_VEL_P/I/D_ACC 1.8 / 0.4 / 0.2, MPC_Z_VEL_P/I_ACC 4 / 2) on SIH's plant with linear drag
-  k = SIH_KDV / SIH_MASS = 1 s⁻¹. No free parameter; RMS residual 0.057 / 0.072 / 0.042 m/s (n / e / d).
+  k = SIH_KDV / SIH_MASS = 1 s⁻¹, tilt-limited at MPC_TILT_MAX_AIR 45°. No free parameter; RMS residual
+  0.057 / 0.072 / 0.042 m/s (n / e / d).
 - ``ARDUCOPTER``: ArduCopter's GUIDED velocity control with its 4.x defaults (``sim.poscontrol``): the
   setpoint is shaped into a jerk-limited trajectory (PSC_JERK_XY 5 m/s³, WPNAV_ACCEL 2.5 m/s²; Z 5 / 1)
   integrated into a position target, tracked by PSC_POSXY_P 1 and the velocity PID PSC_VELXY_P/I 2 / 1
   (D 0: ArduCopter's D acts on the velocity error, which the acceleration feed-forward keeps small; ours
   would act on the whole measured acceleration). No fitted parameter; RMS residual 0.028 / 0.024 /
   0.020 m/s, below the README's delay + double-lag fit (0.030 / 0.038 / 0.025). The circle mission flown
-  on it (in process, calm) tracks at p95 0.0085 m, where real ArduCopter SITL gave 0.012 m.
-- ``DEFAULT``: what the simulator flew before calibration (drag 0.3 s⁻¹, no shaping). It stays the default
-  for now: the guidance is not yet robust to ``PX4_SIH``'s slow integrator mode (issue 10).
+  on it (in process, calm, perfect estimate) tracks at p95 0.0085 m; real ArduCopter SITL gave 0.012 m.
+- ``PX4``: PX4's velocity PID as in ``PX4_SIH`` on a real airframe's drag (0.3 s⁻¹: EKF2_MCOEF's 0.15 s⁻¹
+  rotor drag plus body drag), tilt-limited at MPC_TILT_MAX_AIR 45°.
+- ``DEFAULT``: what the simulator flew before calibration (``MultirotorParams()``: the same PID, tilt 35°).
+
+``SIM_PROFILES`` pairs each with the estimator error it reports (``sim.estimator``); ``default_for`` is
+what a simulated PX4 or ArduPilot flies unless told otherwise (``px4`` and ``ardupilot``).
 """
 
 from __future__ import annotations
