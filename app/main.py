@@ -109,7 +109,7 @@ class Flight:
     duration_s: float
     autopilot: str
     setpoints_sent: int
-    tracking: dict[str, Any]
+    figures: dict[str, Any]  # the mission's own (circle: tracking error percentiles)
     timing: dict[str, Any]  # telemetry latency and setpoint spacing: what a busy computer did to the run
     safety: dict[str, Any]  # what the boundary refused, dropped or had to do (watchdog)
 
@@ -223,7 +223,7 @@ async def fly_mission(
         clock.now_s() - t_start_s,
         vehicle.autopilot.value,
         setpoints.sent,
-        runner.tracking.summary(),
+        runner.mission.summary(),
         timing,
         safety,
     )
@@ -298,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
             final_state=flight.result.final_state,
             autopilot=flight.autopilot,
             setpoints_sent=flight.setpoints_sent,
-            **flight.tracking,
+            **flight.figures,
             timing={k: round(v, 6) if isinstance(v, float) else v for k, v in flight.timing.items()},
             safety=flight.safety,
         )

@@ -41,6 +41,7 @@ from app.messages import (
     TelemetrySnapshot,
     Vec3,
 )
+from app.offboard.vehicle import SampleListener
 from app.offboard.watchdog import SetpointWatchdog
 from sim import airframes
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, MavResult, Mode, Profile, mode_for
@@ -51,6 +52,7 @@ from sim.stack_types import PositionTarget, StackEvent, Truth
 from sim.state_log import StateLog
 from sim.wind import Wind, WindConfig
 
+TELEMETRY_PERIOD_S = 0.02  # position and attitude samples for listeners: the 50 Hz streams
 SETPOINT_RESEND_S = 0.05  # MAVSDK offboard re-sends the last setpoint at 20 Hz
 OFFBOARD_WATCHDOG_S = 3.0  # MAVSDK stops sending when the vehicle is not in OFFBOARD after this
 _RESULT_NAMES = {
@@ -95,6 +97,8 @@ class InProcessVehicle:
         self._stream_started_s = 0.0
         self._next_resend_s = 0.0
         self._watchdogs: list[SetpointWatchdog] = []
+        self._listeners: list[SampleListener] = []
+        self._next_sample_s = 0.0
         boot = self.stack.mode
         self._record("mode", 0.0, mode=boot.flight_mode.value, autopilot_mode=boot.label, reason="boot")
 
@@ -138,6 +142,10 @@ class InProcessVehicle:
             home_ned_m=st.home_ned_m,
             heartbeat_t_s=t_s,
         )
+
+    def add_sample_listener(self, listener: SampleListener) -> None:
+        """Position and attitude samples of the estimate at ``TELEMETRY_PERIOD_S`` (as the MAVLink streams)."""
+        self._listeners.append(listener)
 
     def link_stats(self) -> dict[str, float | str | None]:
         return {}  # no link: samples are read straight from the physics
@@ -252,6 +260,13 @@ class InProcessVehicle:
             self._next_resend_s += SETPOINT_RESEND_S
         st.step(t_s)
         self._poll_watchdogs(t_s)
+        if self._listeners and st.started and t_s >= self._next_sample_s:
+            self._next_sample_s = t_s + TELEMETRY_PERIOD_S
+            snap = self.telemetry()
+            assert snap.pos_vel is not None and snap.attitude is not None
+            for listener in self._listeners:
+                listener(snap.pos_vel, t_s)
+                listener(snap.attitude, t_s)
         return t_s
 
     def _poll_watchdogs(self, t_s: float) -> None:

@@ -12,7 +12,8 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from app.missions.circle import CircleTarget, TrackingErrors
+from app.missions.circle import CircleMission
+from app.missions.estimates import MissionModel
 from app.missions.params import MissionParams
 from app.offboard.boundary import VehicleBoundary
 from app.offboard.setpoint_loop import SetpointLoop
@@ -22,7 +23,7 @@ class MissionIO(Protocol):
     boundary: VehicleBoundary
     setpoints: SetpointLoop
     params: MissionParams
-    tracking: TrackingErrors
+    mission: MissionModel
 
     def now_s(self) -> float: ...
 
@@ -34,6 +35,7 @@ Action = Callable[[MissionIO], Awaitable[None]]
 class ActionSpec:
     fn: Action
     control: tuple[str, ...] | None  # state control kinds allowed; None: any
+    model: str | None = None  # the mission model it works on (``runner.MISSION_MODELS``), if any
 
 
 async def arm(io: MissionIO) -> None:
@@ -55,10 +57,10 @@ async def start_circle(io: MissionIO) -> None:
     pv = io.boundary.telemetry().pos_vel
     if pv is None:
         return  # the loop keeps holding; position_lost will abort
+    if not isinstance(io.mission, CircleMission):
+        raise TypeError(f"start_circle needs the circle mission, not {type(io.mission).__name__}")
     p = io.params
-    circle = CircleTarget(
-        pv.pos_ned_m, io.now_s(), p.circle_radius_m, p.circle_v_reduction_s, p.tracking_settle_s, io.tracking
-    )
+    circle = io.mission.start(pv.pos_ned_m, io.now_s(), p.circle_radius_m, p.circle_v_reduction_s, p.tracking_settle_s)
     io.setpoints.engage(circle)
 
 
@@ -80,7 +82,7 @@ ACTIONS: dict[str, ActionSpec] = {
     "arm": ActionSpec(arm, ("autopilot",)),
     "takeoff": ActionSpec(takeoff, ("autopilot",)),
     "start_offboard": ActionSpec(start_offboard, ("offboard",)),
-    "start_circle": ActionSpec(start_circle, ("offboard",)),
+    "start_circle": ActionSpec(start_circle, ("offboard",), "circle"),
     "hold_position": ActionSpec(hold_position, ("offboard",)),
     "land": ActionSpec(land, ("autopilot",)),
     "stop_and_hold": ActionSpec(stop_and_hold, None),

@@ -1,4 +1,4 @@
-"""The circle target generator of thesis §5.2.2 (eqs. 5.3–5.4), and its tracking statistics.
+"""The circle mission: the target generator of thesis §5.2.2 (eqs. 5.3–5.4) and its tracking statistics.
 
     θ   = (t − t₀) / v_reduction                                 (5.3)
     x   = x₀ + r(−1 + cos θ),   y = y₀ + r sin θ,   z = z₀         (5.4a–c)
@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 from app.messages import PositionVelocityNed, TargetState, Vec3
+from app.missions.estimates import Estimates
 from app.stats import percentile
 
 
@@ -85,3 +87,26 @@ class CircleTarget:
         self.errors.err_m.append(math.sqrt(dn * dn + de * de + dd * dd))
         self.errors.err_horizontal_m.append(math.hypot(dn, de))
         self.errors.err_vertical_m.append(abs(dd))
+
+
+class CircleMission:
+    """The circle mission's own state: the active target (once ``start``ed) and the tracking errors.
+
+    Guards see ``progress["circle_laps"]`` in the snapshot; the summary carries the tracking figures."""
+
+    def __init__(self) -> None:
+        self.errors = TrackingErrors()
+        self.target: CircleTarget | None = None
+
+    def start(
+        self, origin_ned_m: Vec3, t0_s: float, radius_m: float, v_reduction_s: float, settle_s: float
+    ) -> CircleTarget:
+        self.target = CircleTarget(origin_ned_m, t0_s, radius_m, v_reduction_s, settle_s, self.errors)
+        return self.target
+
+    def snapshot(self, t_s: float) -> Estimates:
+        laps = self.target.laps(t_s) if self.target is not None else 0.0
+        return Estimates(t_s, progress={"circle_laps": laps})
+
+    def summary(self) -> dict[str, Any]:
+        return dict(self.errors.summary())

@@ -1,5 +1,8 @@
 """Guards: pure predicates over an immutable context snapshot. Named in the mission table.
 
+The context holds the telemetry snapshot, the link health and the mission's ``Estimates`` for this tick
+(``app.missions.estimates``) — never a live object.
+
 ``LINK_GUARDS`` must appear in every flying state of a table (the validator refuses one without them): an
 abort request, a lost link (no HEARTBEAT, or the attitude stream dead, for ``link_lost_s``), a lost position
 stream and setpoints that keep failing to go out.
@@ -11,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from app.messages import TelemetrySnapshot
-from app.missions.circle import CircleTarget
+from app.missions.estimates import Estimates
 from app.missions.params import MissionParams
 from app.offboard.boundary import LinkHealth
 
@@ -24,7 +27,7 @@ class GuardContext:
     telemetry: TelemetrySnapshot
     health: LinkHealth
     params: MissionParams
-    target: object | None  # the setpoint loop's active target source
+    estimates: Estimates  # frozen for this tick by the mission (never a live object)
     abort_requested: bool
 
 
@@ -46,7 +49,7 @@ def at_takeoff_altitude(ctx: GuardContext) -> bool:
 
 
 def circle_laps_done(ctx: GuardContext) -> bool:
-    return isinstance(ctx.target, CircleTarget) and ctx.target.laps(ctx.t_s) >= ctx.params.circle_laps
+    return ctx.estimates.progress.get("circle_laps", 0.0) >= ctx.params.circle_laps
 
 
 def disarmed(ctx: GuardContext) -> bool:

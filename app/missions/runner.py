@@ -30,13 +30,25 @@ from app.errors import CommandRefused, VehicleError
 from app.eventlog import EventLog
 from app.messages import Autopilot
 from app.missions.actions import ACTIONS
-from app.missions.circle import TrackingErrors
+from app.missions.circle import CircleMission
+from app.missions.estimates import MissionModel, NoEstimates
 from app.missions.guards import GUARDS, GuardContext
 from app.missions.params import MissionParams
 from app.missions.table import MissionTable, StateSpec
 from app.offboard.boundary import VehicleBoundary
 from app.offboard.mode_watch import Takeover
 from app.offboard.setpoint_loop import SetpointLoop
+
+MISSION_MODELS: dict[str, type[MissionModel]] = {"circle": CircleMission}
+
+
+def mission_model_for(table: MissionTable) -> MissionModel:
+    """A fresh model for the table: the one its entry actions work on (a table without one estimates nothing)."""
+    models = sorted({m for s in table.states.values() for a in s.entry if (m := ACTIONS[a].model) is not None})
+    if len(models) > 1:
+        raise ValueError(f"mission {table.mission!r} mixes the actions of the {' and '.join(models)} missions")
+    return MISSION_MODELS[models[0]]() if models else NoEstimates()
+
 
 # After a takeover, OFFBOARD showing up this soon after our own OFFBOARD command is that command landing
 # late (MAVSDK retries a command for ~2 s), not the pilot handing back.
@@ -61,12 +73,14 @@ class MissionRunner:
         events: EventLog,
         tick_rate_hz: float,
         mode_confirm_timeout_s: float,
+        mission: MissionModel | None = None,
     ) -> None:
+        """``mission`` None: the model the table's actions work on (``mission_model_for``)."""
         self.table = table
         self.boundary = boundary
         self.setpoints = setpoints
         self.params: MissionParams = table.params
-        self.tracking = TrackingErrors()
+        self.mission: MissionModel = mission if mission is not None else mission_model_for(table)
         self._clock = clock
         self._events = events
         self._period_s = 1.0 / tick_rate_hz
@@ -140,7 +154,7 @@ class MissionRunner:
             telemetry=b.telemetry(),
             health=b.health(now_s),
             params=self.params,
-            target=self.setpoints.source,
+            estimates=self.mission.snapshot(now_s),
             abort_requested=self._abort_requested,
         )
         for t in spec.transitions:

@@ -52,6 +52,7 @@ from app.messages import (
 )
 from app.offboard.px4_modes import MAV_CMD_SET_MESSAGE_INTERVAL, MSG_ID_CURRENT_MODE, px4_flight_mode
 from app.offboard.timesync import RemoteClock
+from app.offboard.vehicle import SampleListener
 from app.settings import TelemetrySettings
 
 HOME_CHANGE_M = 0.5  # a home estimate that moves less than this is not re-published
@@ -59,7 +60,6 @@ HOME_CHANGE_M = 0.5  # a home estimate that moves less than this is not re-publi
 # a switch and handled just after its CURRENT_MODE must not read as the pilot handing back.
 CURRENT_MODE_FRESH_S = 1.0
 AUTOPILOT_COMPONENT_ID = 1  # MAV_COMP_ID_AUTOPILOT1: PX4 and ArduPilot
-SampleListener = Callable[[PositionVelocityNed | AttitudeEuler, float], None]
 
 
 def _finite(*xs: float) -> bool:

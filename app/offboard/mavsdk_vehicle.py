@@ -32,7 +32,8 @@ from app.clock import Clock
 from app.errors import VehicleConnectionError, VehicleError
 from app.eventlog import EventLog
 from app.messages import Autopilot, TelemetrySnapshot, Vec3
-from app.offboard.mavsdk_telemetry import MavsdkTelemetry, SampleListener
+from app.offboard.mavsdk_telemetry import MavsdkTelemetry
+from app.offboard.vehicle import SampleListener
 from app.offboard.watchdog import SetpointWatchdog, WatchdogThread
 from app.settings import ConnectionSettings, TelemetrySettings
 

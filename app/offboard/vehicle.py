@@ -12,10 +12,14 @@ received (in MAVSDK's callback thread, not when the app read them).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol
 
-from app.messages import Autopilot, TelemetrySnapshot, Vec3
+from app.messages import AttitudeEuler, Autopilot, PositionVelocityNed, TelemetrySnapshot, Vec3
 from app.offboard.watchdog import SetpointWatchdog
+
+# Called with every position and attitude sample (stamped on the loop clock) and the loop time it arrived.
+SampleListener = Callable[[PositionVelocityNed | AttitudeEuler, float], None]
 
 
 class Vehicle(Protocol):
@@ -37,6 +41,11 @@ class Vehicle(Protocol):
 
     def telemetry(self) -> TelemetrySnapshot:
         """The latest sample of every stream (never blocks)."""
+        ...
+
+    def add_sample_listener(self, listener: SampleListener) -> None:
+        """Call ``listener(sample, received_s)`` for every position and attitude sample, in arrival order
+        (the snapshot keeps only the latest; a vehicle-state history wants them all)."""
         ...
 
     def link_stats(self) -> dict[str, float | str | None]:

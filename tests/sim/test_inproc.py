@@ -154,3 +154,33 @@ async def test_ardupilot_takeoff_goes_through_guided() -> None:
         assert v.telemetry().mode() is FlightMode.HOLD  # BRAKE
     finally:
         task.cancel()
+
+
+async def test_sample_listeners_feed_a_state_history_at_the_telemetry_rate() -> None:
+    """The in-process vehicle hands every 50 Hz position and attitude sample to listeners, like MAVSDK does,
+    so the state history the estimators interpolate in is fed the same way in virtual time."""
+    from app.estimators.state_history import StateHistory
+    from app.messages import AttitudeEuler, PositionVelocityNed
+
+    v = InProcessVehicle(seed=1, wind=WindConfig.off())
+    history, stamps = StateHistory(), []
+
+    def listen(sample, received_s):
+        stamps.append((type(sample).__name__, sample.t_s, received_s))
+        if isinstance(sample, PositionVelocityNed):
+            history.add_pos_vel(sample)
+        elif isinstance(sample, AttitudeEuler):
+            history.add_attitude(sample)
+
+    v.add_sample_listener(listen)
+    async with running(v):
+        await fly_up(v, 5.0)
+        await asyncio.sleep(2.0)
+        now_s = asyncio.get_running_loop().time()
+        tel = v.telemetry()
+    pos_times = [t for kind, t, _ in stamps if kind == "PositionVelocityNed"]
+    gaps = [b - a for a, b in zip(pos_times, pos_times[1:], strict=False)]
+    assert len(pos_times) > 100 and min(gaps) >= 0.02 - 1e-9 and max(gaps) <= 0.02 + 0.011  # 50 Hz (100 Hz physics)
+    assert all(t == r for _, t, r in stamps)  # stamped when taken: no link in between
+    state = history.at(now_s - 0.5)
+    assert state.pos_ned_m[2] == pytest.approx(tel.pos_vel.pos_ned_m[2], abs=0.05)  # hovering at 5 m

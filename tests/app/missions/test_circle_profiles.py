@@ -33,7 +33,7 @@ async def fly_circle(profile: str, wind: bool, settings: Settings | None = None,
     )
     flight = await fly_mission(vehicle, load_mission("circle"), settings or Settings(), LoopClock(), EventLog(None))
     assert flight.result.outcome == "completed"
-    return flight.tracking
+    return flight.figures
 
 
 @pytest.mark.looptime(noop_cycles=2)

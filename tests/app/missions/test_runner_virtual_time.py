@@ -51,8 +51,8 @@ async def test_sixty_seconds_of_mission_pass_in_under_two_seconds_of_wall_time()
 @pytest.mark.looptime(noop_cycles=2)
 async def test_circle_tracking_error_in_still_air():
     flight = await fly(InProcessVehicle(seed=1, wind=WindConfig.off()))
-    assert flight.tracking["tracking_samples"] > 1000
-    assert flight.tracking["tracking_error_p95_m"] <= 0.04
+    assert flight.figures["tracking_samples"] > 1000
+    assert flight.figures["tracking_error_p95_m"] <= 0.04
 
 
 @pytest.mark.looptime(noop_cycles=2)
