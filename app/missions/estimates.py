@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Protocol
 
-from app.messages import TargetState, Vec3
+from app.messages import TargetState
 
 _EMPTY: Mapping[str, float] = MappingProxyType({})
 
@@ -30,7 +30,7 @@ class SensorHealth:
 class Estimates:
     t_s: float
     target: TargetState | None = None  # the object's estimated state (NED about home)
-    target_cov_ned_m2: tuple[Vec3, Vec3, Vec3] | None = None  # position covariance
+    target_cov_ne_m2: tuple[tuple[float, float], tuple[float, float]] | None = None  # horizontal, m²
     fix_age_s: float | None = None  # since the last accepted observation
     converged_for_s: float | None = None  # how long the filter has counted as converged
     height_above_sea_m: float | None = None  # from the radar, not from home

@@ -1,0 +1,191 @@
+"""The pickup mission's estimates: detections → triangulation → target filter, with false-fix defences.
+
+Inputs arrive from the sensor tasks, each stamped with the time it was *measured* (loop clock):
+- vehicle samples (position and attitude) → the state history (``on_vehicle_sample``);
+- the radar's height above the sea (``on_height``), or its loss (``on_radar_lost``);
+- marker detections: four raw corner pixels at the frame's capture time (``on_marker``).
+
+A detection becomes a fix only if it passes, in order (each rejection counted by reason):
+1. the vehicle state at the capture time is in the history, and a fresh radar height exists;
+2. the ray meets the sea (``SeaPlaneTriangulator``);
+3. **size**: the marker's apparent size matches its known physical size at that range,
+   √(area_px / area_expected) within ``1 ± size_tolerance`` where area_expected = (f·s/r)²·cos θ
+   (r the camera–object range along the ray, θ the ray's angle from the vertical). A 20 px printed glyph
+   seen from 10 m is 5× too small for a 0.3 m marker and never becomes a fix;
+4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
+   must agree within ``confirm_radius_m``; only then is the filter started (with the newest of them).
+   Once locked, the filter's own innovation gate judges every fix; when the lock times out, confirmation
+   starts over.
+
+``snapshot`` freezes the estimate for the guards: the object predicted to now, its covariance, the fix age,
+how long the filter has counted as converged (position σ ≤ ``converged_sigma_m`` without a break) and the
+height above the sea. Pure: no asyncio, no clock reads.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from app.estimators.state_history import OutsideHistoryError, StateHistory
+from app.estimators.target_filter import LinearTargetFilter
+from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
+from app.messages import AttitudeEuler, PositionVelocityNed, TargetObservation
+from app.missions.estimates import Estimates, SensorHealth
+
+
+@dataclass(frozen=True, slots=True)
+class FixChecks:
+    marker_size_m: float = 0.30  # edge of the printed marker, m
+    size_tolerance: float = 0.35  # |√(area ratio) − 1| allowed
+    confirm_frames: int = 3  # agreeing fixes before a new lock
+    confirm_window_s: float = 1.0
+    confirm_radius_m: float = 0.5
+    height_max_age_s: float = 0.5  # a radar height older than this is not used
+    converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
+
+
+def polygon_area_px2(corners_px: ArrayLike) -> float:
+    """Shoelace area of the detected quadrilateral, px²."""
+    c = np.asarray(corners_px, dtype=np.float64).reshape(-1, 2)
+    x, y = c[:, 0], c[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def apparent_size_ratio(corners_px: ArrayLike, fix: SeaPlaneFix, focal_px: float, size_m: float) -> float:
+    """√(measured area / expected area) of a flat marker seen along ``fix``'s ray (1.0 = the right size)."""
+    range_m = fix.camera_height_m / max(math.cos(fix.off_vertical_rad), 1e-6)
+    expected = (focal_px * size_m / range_m) ** 2 * math.cos(fix.off_vertical_rad)
+    return math.sqrt(polygon_area_px2(corners_px) / expected) if expected > 0.0 else math.inf
+
+
+class PickupEstimates:
+    """The pickup mission's ``MissionModel``: see the module docstring."""
+
+    def __init__(
+        self,
+        triangulator: SeaPlaneTriangulator,
+        target_filter: LinearTargetFilter,
+        checks: FixChecks | None = None,
+        history: StateHistory | None = None,
+    ) -> None:
+        self.tri = triangulator
+        self.filter = target_filter
+        self.checks = checks if checks is not None else FixChecks()
+        self.history = history if history is not None else StateHistory()
+        self.rejected: Counter[str] = Counter()
+        self.fixes = 0
+        self._height: tuple[float, float] | None = None  # (t_s, m)
+        self._radar_lost = False
+        self._last_frame_t_s: float | None = None
+        self._last_fix_t_s: float | None = None
+        self._candidates: deque[TargetObservation] = deque()
+        self._converged_since_s: float | None = None
+
+    # ---- inputs -------------------------------------------------------------------------------
+
+    def on_vehicle_sample(self, sample: PositionVelocityNed | AttitudeEuler, received_s: float = 0.0) -> None:
+        if isinstance(sample, PositionVelocityNed):
+            self.history.add_pos_vel(sample)
+        else:
+            self.history.add_attitude(sample)
+
+    def on_height(self, t_s: float, height_m: float) -> None:
+        if math.isfinite(height_m) and height_m > 0.0:
+            self._height = (t_s, height_m)
+            self._radar_lost = False
+
+    def on_radar_lost(self) -> None:
+        self._radar_lost = True
+
+    def on_frame(self, t_s: float) -> None:
+        """A camera frame was processed (with or without a detection): the camera is alive."""
+        self._last_frame_t_s = t_s
+
+    def on_marker(self, t_s: float, corners_px: ArrayLike) -> bool:
+        """One marker detection at capture time ``t_s``; True when it was fused into the filter."""
+        self.on_frame(t_s)
+        c = self.checks
+        if self._height is None or self._radar_lost or abs(t_s - self._height[0]) > c.height_max_age_s:
+            return self._reject("no_height")
+        try:
+            state = self.history.at(t_s)
+        except OutsideHistoryError:
+            return self._reject("no_state")
+        fix = self.tri.fix_marker(t_s, corners_px, state, self._height[1])
+        if fix is None:
+            return self._reject("no_ray")
+        focal = math.sqrt(self.tri.camera.fx_px * self.tri.camera.fy_px)
+        ratio = apparent_size_ratio(corners_px, fix, focal, c.marker_size_m)
+        if not abs(ratio - 1.0) <= c.size_tolerance:
+            return self._reject("size")
+        obs = fix.observation
+        if not self.filter.initialised or self.filter.estimate(t_s) is None:
+            if not self._confirmed(obs):
+                return self._reject("confirming")
+            self.filter.reset()
+        result = self.filter.update(obs)
+        if not result.accepted:
+            return self._reject(f"filter_{result.reason}")
+        self.fixes += 1
+        self._last_fix_t_s = t_s
+        return True
+
+    def _confirmed(self, obs: TargetObservation) -> bool:
+        c = self.checks
+        self._candidates.append(obs)
+        while self._candidates and obs.t_s - self._candidates[0].t_s > c.confirm_window_s:
+            self._candidates.popleft()
+        near = [
+            o
+            for o in self._candidates
+            if math.hypot(o.pos_ned_m[0] - obs.pos_ned_m[0], o.pos_ned_m[1] - obs.pos_ned_m[1]) <= c.confirm_radius_m
+        ]
+        if len(near) >= c.confirm_frames:
+            self._candidates.clear()
+            return True
+        return False
+
+    def _reject(self, reason: str) -> bool:
+        self.rejected[reason] += 1
+        return False
+
+    # ---- MissionModel ---------------------------------------------------------------------------
+
+    def height_above_sea_m(self, t_s: float) -> float | None:
+        h = self._height
+        if h is None or self._radar_lost or t_s - h[0] > self.checks.height_max_age_s:
+            return None
+        return h[1]
+
+    def snapshot(self, t_s: float) -> Estimates:
+        est = self.filter.estimate(t_s) if self.filter.initialised else None
+        sigma_m = None
+        if est is not None:
+            sigma_m = math.sqrt(max(np.linalg.eigvalsh(np.array(est.cov_ne_m2))))
+        if sigma_m is not None and sigma_m <= self.checks.converged_sigma_m:
+            if self._converged_since_s is None:
+                self._converged_since_s = t_s
+        else:
+            self._converged_since_s = None
+        health = SensorHealth(
+            camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,
+            radar_lost=self._radar_lost,
+        )
+        return Estimates(
+            t_s,
+            target=est.as_target() if est is not None else None,
+            target_cov_ne_m2=est.cov_ne_m2 if est is not None else None,
+            fix_age_s=None if self._last_fix_t_s is None or est is None else t_s - self._last_fix_t_s,
+            converged_for_s=None if self._converged_since_s is None else t_s - self._converged_since_s,
+            height_above_sea_m=self.height_above_sea_m(t_s),
+            sensors=health,
+        )
+
+    def summary(self) -> dict[str, Any]:
+        return {"fixes": self.fixes, "fixes_rejected": dict(self.rejected)}
