@@ -18,7 +18,7 @@ import signal
 import socket
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,9 +26,13 @@ from typing import Any
 from app.cli import OneLineParser, number, run_cli
 from app.clock import Clock, LoopClock
 from app.errors import AppError, ConfigError
+from app.estimators.factory import make_target_filter
+from app.estimators.triangulation import SeaPlaneTriangulator
 from app.eventlog import EventLog
 from app.messages import Autopilot
-from app.missions.runner import MissionRunner, RunResult
+from app.missions.estimates import MissionModel
+from app.missions.pickup import FixChecks, PickupEstimates
+from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
 from app.missions.table import MissionTable, load_mission
 from app.offboard.boundary import BoundaryParams, VehicleBoundary
 from app.offboard.envelope import EnvelopeLimits
@@ -154,9 +158,31 @@ def build_flight(
         settings.telemetry.position_stale_s,
     )
     runner = MissionRunner(
-        table, boundary, setpoints, clock, events, settings.runner.tick_rate_hz, settings.runner.mode_confirm_timeout_s
+        table,
+        boundary,
+        setpoints,
+        clock,
+        events,
+        settings.runner.tick_rate_hz,
+        settings.runner.mode_confirm_timeout_s,
+        mission=build_mission_model(table, settings),
     )
     return boundary, setpoints, runner
+
+
+def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel:
+    """The mission's own model: the pickup's estimate chain is built from the camera settings and params."""
+    if model_name(table) != "pickup":
+        return mission_model_for(table)
+    p = table.params
+    checks = FixChecks(
+        marker_size_m=p.marker_size_m,
+        size_tolerance=p.size_tolerance,
+        confirm_frames=p.confirm_frames,
+        converged_sigma_m=p.converged_sigma_m,
+    )
+    tri = SeaPlaneTriangulator.from_settings(settings.camera)
+    return PickupEstimates(tri, make_target_filter(p), checks, search_centre_ne_m=p.search_start_ne_m)
 
 
 async def fly_mission(
@@ -166,6 +192,7 @@ async def fly_mission(
     clock: Clock,
     events: EventLog,
     on_start: Callable[[MissionRunner], None] | None = None,
+    sensors: Sequence[Callable[[MissionModel], Coroutine[Any, Any, None]]] = (),
 ) -> Flight:
     """Run one mission on a connected vehicle; always ends with a safe exit.
 
@@ -197,6 +224,9 @@ async def fly_mission(
         async with asyncio.TaskGroup() as tg:
             streams = tg.create_task(vehicle.run(), name="vehicle.telemetry")
             loop_task = tg.create_task(setpoints.run(), name="offboard.setpoints")
+            sensor_tasks = [tg.create_task(feed(runner.mission), name=f"sensors.{i}") for i, feed in enumerate(sensors)]
+            if isinstance(runner.mission, PickupEstimates):
+                vehicle.add_sample_listener(runner.mission.on_vehicle_sample)
             try:
                 await vehicle.wait_ready(settings.connection.ready_timeout_s)
                 events.write(clock.now_s(), "run", event="vehicle_ready", autopilot=vehicle.autopilot.value)
@@ -207,6 +237,8 @@ async def fly_mission(
                 finally:
                     loop_task.cancel()
                     streams.cancel()
+                    for t in sensor_tasks:
+                        t.cancel()
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):

@@ -197,6 +197,11 @@ class InProcessVehicle:
         self._check("stop_offboard", self._command(t_s, "DO_SET_MODE", self.stack.hold(t_s), self._hold_mode()))
         await asyncio.sleep(0)
 
+    async def grip(self, closed: bool) -> None:
+        t_s = self._advance()
+        self._check("gripper", self._command(t_s, "DO_GRIPPER", self.stack.set_gripper(t_s, grab=closed)))
+        await asyncio.sleep(0)
+
     async def land(self) -> None:
         t_s = self._advance()
         self._check("land", self._command(t_s, "NAV_LAND", self.stack.land(t_s)))

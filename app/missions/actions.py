@@ -15,8 +15,10 @@ from typing import Protocol
 from app.missions.circle import CircleMission
 from app.missions.estimates import MissionModel
 from app.missions.params import MissionParams
+from app.missions.pickup import PickupEstimates
+from app.missions.pickup_targets import DescendTarget, ObjectTarget, SearchPattern, expanding_square
 from app.offboard.boundary import VehicleBoundary
-from app.offboard.setpoint_loop import SetpointLoop
+from app.offboard.setpoint_loop import FixedPoint, SetpointLoop
 
 
 class MissionIO(Protocol):
@@ -78,6 +80,68 @@ async def stop_and_hold(io: MissionIO) -> None:
     await io.boundary.abort_stop("abort")
 
 
+# ---- pickup ------------------------------------------------------------------------------------------
+
+
+def _pickup(io: MissionIO) -> PickupEstimates:
+    if not isinstance(io.mission, PickupEstimates):
+        raise TypeError(f"this action needs the pickup mission, not {type(io.mission).__name__}")
+    return io.mission
+
+
+async def goto_search(io: MissionIO) -> None:
+    """Fly to the search centre at the search height (above home)."""
+    m, p = _pickup(io), io.params
+    n, e = m.search_centre_ne_m
+    io.setpoints.engage(FixedPoint("search_start", (n, e, -p.search_altitude_m)))
+
+
+async def start_search(io: MissionIO) -> None:
+    """An expanding square around the search centre (the last estimate after a loss, when there is one)."""
+    m, p = _pickup(io), io.params
+    m.restart_search_at_last_estimate()
+    spacing_m = m.footprint_m(p.search_altitude_m) * (1.0 - p.search_overlap)
+    waypoints = expanding_square(m.search_centre_ne_m, spacing_m, p.search_max_radius_m)
+    m.search = SearchPattern(waypoints, -p.search_altitude_m, p.search_speed_mps, io.now_s())
+    io.setpoints.engage(m.search)
+
+
+async def start_approach(io: MissionIO) -> None:
+    """Above the estimate at the search height above the sea."""
+    io.setpoints.engage(ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.search_altitude_m))
+
+
+async def start_track(io: MissionIO) -> None:
+    io.setpoints.engage(ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.track_height_m))
+
+
+async def start_descend(io: MissionIO) -> None:
+    p, m = io.params, _pickup(io)
+    h = m.height_above_sea_m(io.now_s()) or p.track_height_m
+    target = DescendTarget(
+        m, io.boundary.telemetry, h, p.descend_speed_mps, p.safety_height_m, p.fix_fresh_s, p.descend_converged_s
+    )
+    io.setpoints.engage(target, allow_below_min=True)
+
+
+async def grab(io: MissionIO) -> None:
+    """Close the gripper (MAV_CMD_DO_GRIPPER) and keep the position meanwhile."""
+    io.setpoints.engage(None, allow_below_min=True)
+    await io.boundary.grip(True)
+
+
+async def lift(io: MissionIO) -> None:
+    pv = io.boundary.telemetry().pos_vel
+    if pv is None:
+        return
+    io.setpoints.engage(FixedPoint("lift", (pv.pos_ned_m[0], pv.pos_ned_m[1], -io.params.lift_altitude_m)))
+
+
+async def return_home(io: MissionIO) -> None:
+    home = io.boundary.telemetry().home_ned_m or (0.0, 0.0, 0.0)
+    io.setpoints.engage(FixedPoint("home", (home[0], home[1], home[2] - io.params.return_altitude_m)))
+
+
 ACTIONS: dict[str, ActionSpec] = {
     "arm": ActionSpec(arm, ("autopilot",)),
     "takeoff": ActionSpec(takeoff, ("autopilot",)),
@@ -86,4 +150,12 @@ ACTIONS: dict[str, ActionSpec] = {
     "hold_position": ActionSpec(hold_position, ("offboard",)),
     "land": ActionSpec(land, ("autopilot",)),
     "stop_and_hold": ActionSpec(stop_and_hold, None),
+    "goto_search": ActionSpec(goto_search, ("offboard",), "pickup"),
+    "start_search": ActionSpec(start_search, ("offboard",), "pickup"),
+    "start_approach": ActionSpec(start_approach, ("offboard",), "pickup"),
+    "start_track": ActionSpec(start_track, ("offboard",), "pickup"),
+    "start_descend": ActionSpec(start_descend, ("offboard",), "pickup"),
+    "grab": ActionSpec(grab, ("offboard",), "pickup"),
+    "lift": ActionSpec(lift, ("offboard",), "pickup"),
+    "return_home": ActionSpec(return_home, ("offboard",), "pickup"),
 }

@@ -10,10 +10,11 @@ stream and setpoints that keep failing to go out.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from app.messages import TelemetrySnapshot
+from app.messages import LandedState, TelemetrySnapshot
 from app.missions.estimates import Estimates
 from app.missions.params import MissionParams
 from app.offboard.boundary import LinkHealth
@@ -29,13 +30,21 @@ class GuardContext:
     params: MissionParams
     estimates: Estimates  # frozen for this tick by the mission (never a live object)
     abort_requested: bool
+    start_given: bool = True  # the ground station said start (True when there is none)
 
 
 Guard = Callable[[GuardContext], bool]
 
+GRAB_SETTLE_S = 1.0  # the gripper closes within this
+
 
 def always(ctx: GuardContext) -> bool:
     return True
+
+
+def start_given(ctx: GuardContext) -> bool:
+    """The vehicle is ready and the mission may start (at once without a ground station)."""
+    return ctx.start_given and vehicle_ready(ctx)
 
 
 def vehicle_ready(ctx: GuardContext) -> bool:
@@ -75,10 +84,82 @@ def setpoints_failing(ctx: GuardContext) -> bool:
     return ctx.health.send_failures >= ctx.params.setpoint_failures_abort
 
 
+# ---- pickup ------------------------------------------------------------------------------------------
+
+
+def _horizontal_m(ctx: GuardContext, n: float, e: float) -> float | None:
+    pv = ctx.telemetry.pos_vel
+    return None if pv is None else math.hypot(pv.pos_ned_m[0] - n, pv.pos_ned_m[1] - e)
+
+
+def at_search_start(ctx: GuardContext) -> bool:
+    pr, h = ctx.estimates.progress, ctx.telemetry.height_above_home_m()
+    d = _horizontal_m(ctx, pr.get("search_centre_n_m", math.nan), pr.get("search_centre_e_m", math.nan))
+    p = ctx.params
+    return d is not None and d <= p.at_point_m and h is not None and abs(h - p.search_altitude_m) <= p.at_point_m
+
+
+def search_done(ctx: GuardContext) -> bool:
+    return ctx.estimates.progress.get("search_done", 0.0) >= 1.0
+
+
+def _fresh(ctx: GuardContext) -> bool:
+    e = ctx.estimates
+    return e.target is not None and e.fix_age_s is not None and e.fix_age_s <= ctx.params.fix_fresh_s
+
+
+def object_found(ctx: GuardContext) -> bool:
+    """A confirmed lock with a fresh fix."""
+    return _fresh(ctx)
+
+
+def above_object(ctx: GuardContext) -> bool:
+    t = ctx.estimates.target
+    d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
+    return _fresh(ctx) and d is not None and d <= ctx.params.approach_radius_m
+
+
+def ready_to_descend(ctx: GuardContext) -> bool:
+    """Fresh fix, converged for long enough, right above the object."""
+    e, p = ctx.estimates, ctx.params
+    t = e.target
+    d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
+    converged = e.converged_for_s is not None and e.converged_for_s >= p.descend_converged_s
+    return _fresh(ctx) and converged and d is not None and d <= p.track_radius_m
+
+
+def target_lost(ctx: GuardContext) -> bool:
+    e = ctx.estimates
+    return e.target is None or e.fix_age_s is None or e.fix_age_s > ctx.params.target_lost_s
+
+
+def touchdown(ctx: GuardContext) -> bool:
+    """On the water: the radar reads the touchdown height, or the autopilot says landed."""
+    h = ctx.estimates.height_above_sea_m
+    landed = ctx.telemetry.landed_state is not None and ctx.telemetry.landed_state.value is LandedState.ON_GROUND
+    return landed or (h is not None and h <= ctx.params.touchdown_height_m)
+
+
+def grab_settled(ctx: GuardContext) -> bool:
+    return ctx.time_in_state_s >= GRAB_SETTLE_S
+
+
+def at_lift_altitude(ctx: GuardContext) -> bool:
+    h = ctx.telemetry.height_above_home_m()
+    return h is not None and h >= ctx.params.lift_altitude_m - ctx.params.altitude_tolerance_m
+
+
+def above_home(ctx: GuardContext) -> bool:
+    home = ctx.telemetry.home_ned_m
+    d = None if home is None else _horizontal_m(ctx, home[0], home[1])
+    return d is not None and d <= ctx.params.at_point_m
+
+
 GUARDS: dict[str, Guard] = {
     g.__name__: g
     for g in (
         always,
+        start_given,
         vehicle_ready,
         at_takeoff_altitude,
         circle_laps_done,
@@ -87,6 +168,16 @@ GUARDS: dict[str, Guard] = {
         abort_requested,
         link_lost,
         setpoints_failing,
+        at_search_start,
+        search_done,
+        object_found,
+        above_object,
+        ready_to_descend,
+        target_lost,
+        touchdown,
+        grab_settled,
+        at_lift_altitude,
+        above_home,
     )
 }
 LINK_GUARDS = ("abort_requested", "link_lost", "position_lost", "setpoints_failing")

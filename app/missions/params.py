@@ -6,6 +6,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+Pair = tuple[float, float]
+
 
 class MissionParams(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -35,3 +37,30 @@ class MissionParams(BaseModel):
         "wave", description="object motion model: the thesis's constant velocity, or current + waves"
     )
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
+
+    # ---- pickup (app/missions/pickup.yaml) ------------------------------------------------------------
+    search_start_ne_m: Pair = Field((40.0, 20.0), description="centre of the search pattern, NE of home, m")
+    search_altitude_m: float = Field(10.0, ge=3.0, le=60.0, description="search height above home, m")
+    search_speed_mps: float = Field(2.0, ge=0.2, le=10.0, description="speed along the search pattern, m/s")
+    search_overlap: float = Field(0.3, ge=0.0, le=0.8, description="overlap of neighbouring camera footprints")
+    search_max_radius_m: float = Field(30.0, ge=5.0, le=500.0, description="search no farther from its centre, m")
+    at_point_m: float = Field(1.0, ge=0.1, le=10.0, description="this close counts as having reached a point, m")
+    approach_radius_m: float = Field(1.0, ge=0.1, le=10.0, description="above the estimate within this → TRACK, m")
+    track_height_m: float = Field(4.0, ge=1.0, le=30.0, description="TRACK's height above the sea (radar), m")
+    track_radius_m: float = Field(0.3, ge=0.05, le=5.0, description="over the object within this to descend, m")
+    fix_fresh_s: float = Field(0.5, ge=0.05, le=5.0, description="a fix younger than this is fresh, s")
+    target_lost_s: float = Field(2.0, ge=0.2, le=30.0, description="no fix for this long → target lost, s")
+    descend_converged_s: float = Field(
+        2.0, ge=0.0, le=60.0, description="the filter converged for this long before DESCEND, s"
+    )
+    converged_sigma_m: float = Field(0.10, ge=0.01, le=2.0, description="filter position σ that counts as converged, m")
+    descend_speed_mps: float = Field(0.5, ge=0.1, le=2.0, description="descent rate of the desired height, m/s")
+    safety_height_m: float = Field(
+        2.0, ge=0.5, le=20.0, description="never below this above the sea without a fresh converged fix, m"
+    )
+    touchdown_height_m: float = Field(0.3, ge=0.05, le=2.0, description="radar height that counts as touchdown, m")
+    marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
+    size_tolerance: float = Field(0.35, ge=0.05, le=1.0, description="apparent size within this of the expected")
+    confirm_frames: int = Field(3, ge=1, le=30, description="agreeing fixes before a new lock, count")
+    lift_altitude_m: float = Field(5.0, ge=1.0, le=60.0, description="climb to this above home after the grab, m")
+    return_altitude_m: float = Field(10.0, ge=2.0, le=60.0, description="fly home at this height above home, m")

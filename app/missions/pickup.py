@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from collections import Counter, deque
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -37,6 +37,9 @@ from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
 from app.messages import AttitudeEuler, PositionVelocityNed, TargetObservation
 from app.missions.estimates import Estimates, SensorHealth
+
+if TYPE_CHECKING:
+    from app.missions.pickup_targets import SearchPattern
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,6 +76,7 @@ class PickupEstimates:
         target_filter: LinearTargetFilter,
         checks: FixChecks | None = None,
         history: StateHistory | None = None,
+        search_centre_ne_m: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         self.tri = triangulator
         self.filter = target_filter
@@ -86,6 +90,18 @@ class PickupEstimates:
         self._last_fix_t_s: float | None = None
         self._candidates: deque[TargetObservation] = deque()
         self._converged_since_s: float | None = None
+        self.search_centre_ne_m = search_centre_ne_m  # where SEARCH searches; moves to the last estimate on a loss
+        self.search: SearchPattern | None = None
+        self.last_estimate_ne_m: tuple[float, float] | None = None
+
+    def footprint_m(self, height_m: float) -> float:
+        """The camera footprint's narrower side on the sea from ``height_m`` (nadir view), m."""
+        cam = self.tri.camera
+        return height_m * min(cam.width_px / cam.fx_px, cam.height_px / cam.fy_px)
+
+    def restart_search_at_last_estimate(self) -> None:
+        if self.last_estimate_ne_m is not None:
+            self.search_centre_ne_m = self.last_estimate_ne_m
 
     # ---- inputs -------------------------------------------------------------------------------
 
@@ -173,6 +189,13 @@ class PickupEstimates:
                 self._converged_since_s = t_s
         else:
             self._converged_since_s = None
+        if est is not None:
+            self.last_estimate_ne_m = (est.pos_ned_m[0], est.pos_ned_m[1])
+        progress = {
+            "search_centre_n_m": self.search_centre_ne_m[0],
+            "search_centre_e_m": self.search_centre_ne_m[1],
+            "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
+        }
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,
             radar_lost=self._radar_lost,
@@ -185,6 +208,7 @@ class PickupEstimates:
             converged_for_s=None if self._converged_since_s is None else t_s - self._converged_since_s,
             height_above_sea_m=self.height_above_sea_m(t_s),
             sensors=health,
+            progress=progress,
         )
 
     def summary(self) -> dict[str, Any]:

@@ -39,14 +39,23 @@ from app.offboard.boundary import VehicleBoundary
 from app.offboard.mode_watch import Takeover
 from app.offboard.setpoint_loop import SetpointLoop
 
-MISSION_MODELS: dict[str, type[MissionModel]] = {"circle": CircleMission}
+MISSION_MODELS: dict[str, type[MissionModel]] = {"circle": CircleMission}  # pickup: built with settings (main)
+
+
+def model_name(table: MissionTable) -> str | None:
+    """The mission model the table's entry actions work on (``None``: they need none)."""
+    models = sorted({m for s in table.states.values() for a in s.entry if (m := ACTIONS[a].model) is not None})
+    if len(models) > 1:
+        raise ValueError(f"mission {table.mission!r} mixes the actions of the {' and '.join(models)} missions")
+    return models[0] if models else None
 
 
 def mission_model_for(table: MissionTable) -> MissionModel:
     """A fresh model for the table: the one its entry actions work on (a table without one estimates nothing)."""
-    models = sorted({m for s in table.states.values() for a in s.entry if (m := ACTIONS[a].model) is not None})
-    if len(models) > 1:
-        raise ValueError(f"mission {table.mission!r} mixes the actions of the {' and '.join(models)} missions")
+    name = model_name(table)
+    models = [name] if name is not None else []
+    if models and models[0] not in MISSION_MODELS:
+        raise ValueError(f"mission {table.mission!r} needs its {models[0]} model built by the caller")
     return MISSION_MODELS[models[0]]() if models else NoEstimates()
 
 
@@ -90,6 +99,7 @@ class MissionRunner:
         self._taken_over_from: str | None = None
         self._abort_requested = False
         self._abort_reason = ""
+        self.start_given = True  # a ground station clears this and sets it on its start command
         self._result: RunResult | None = None
         self._tg: asyncio.TaskGroup | None = None
         self._entry: asyncio.Task[None] | None = None
@@ -156,6 +166,7 @@ class MissionRunner:
             params=self.params,
             estimates=self.mission.snapshot(now_s),
             abort_requested=self._abort_requested,
+            start_given=self.start_given,
         )
         for t in spec.transitions:
             if GUARDS[t.when](ctx):

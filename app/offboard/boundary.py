@@ -243,6 +243,9 @@ class VehicleBoundary:
     async def land(self) -> None:
         await self._command("land", self.vehicle.land, frozenset({FlightMode.LAND}))
 
+    async def grip(self, closed: bool) -> None:
+        await self._command("gripper_grab" if closed else "gripper_release", lambda: self.vehicle.grip(closed))
+
     async def hold(self, *, aborting_ok: bool = False) -> None:
         await self._command("hold", self.vehicle.hold, _HOLD, aborting_ok=aborting_ok)
 

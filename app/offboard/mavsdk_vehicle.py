@@ -25,6 +25,7 @@ from typing import Any
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk, MavsdkError
 from mavsdk.asyncio.autopilot import Autopilot as MavAutopilot
 from mavsdk.asyncio.plugins.action import ActionAsync, ActionError
+from mavsdk.asyncio.plugins.gripper import GripperAsync, GripperError
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, OffboardError, VelocityNedYaw
 from mavsdk.logging import LogLevel, log_subscribe
 
@@ -37,6 +38,7 @@ from app.offboard.vehicle import SampleListener
 from app.offboard.watchdog import SetpointWatchdog, WatchdogThread
 from app.settings import ConnectionSettings, TelemetrySettings
 
+GRIPPER_INSTANCE = 1  # MAV_CMD_DO_GRIPPER param 1
 ARM_RETRY_PERIOD_S = 1.0
 # PX4 denies arming while pre-arm checks fail; ArduCopter answers MAV_RESULT_FAILED for the same.
 ARM_RETRY_RESULTS = frozenset({"COMMAND_DENIED", "FAILED", "BUSY"})
@@ -82,6 +84,7 @@ class MavsdkVehicle:
         self._conn = conn
         self._action = ActionAsync(system)
         self._offboard = OffboardAsync(system)
+        self._gripper = GripperAsync(system)
         # The same plugin instance, called synchronously (a second Offboard plugin would re-send on its own).
         self._offboard_sync = self._offboard._plugin
         self._streams = MavsdkTelemetry(system, autopilot, clock, events, tel)
@@ -151,7 +154,7 @@ class MavsdkVehicle:
     async def _call(self, name: str, coro: Awaitable[Any]) -> None:
         try:
             await coro
-        except (ActionError, OffboardError) as e:
+        except (ActionError, OffboardError, GripperError) as e:
             raise VehicleError(name, e.result.name, str(e)) from e
         except MavsdkError as e:
             raise VehicleError(name, "ERROR", str(e)) from e
@@ -217,6 +220,12 @@ class MavsdkVehicle:
             await self._call("offboard_stop", self._offboard.stop())
         except VehicleError:
             await self.hold()
+
+    async def grip(self, closed: bool) -> None:
+        if closed:
+            await self._call("gripper_grab", self._gripper.grab(GRIPPER_INSTANCE))
+        else:
+            await self._call("gripper_release", self._gripper.release(GRIPPER_INSTANCE))
 
     async def land(self) -> None:
         await self._call("land", self._action.land())

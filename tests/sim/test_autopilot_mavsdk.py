@@ -117,3 +117,16 @@ async def test_ardupilot_profile_streams_on_request_guided_reads_offboard_brake_
 
         await c.action.land()
         await first(c.telemetry.subscribe_armed(), lambda armed: not armed, 15.0)
+
+
+async def test_mavsdk_gripper_plugin_closes_and_opens_the_simulated_gripper() -> None:
+    """MAV_CMD_DO_GRIPPER as the pickup's GRAB sends it (MAVSDK's gripper plugin, instance 1)."""
+    from mavsdk.asyncio.plugins.gripper import GripperAsync
+
+    async with mavsdk_on_sim(wind=WindConfig.off()) as c:
+        gripper = GripperAsync(c.system)
+        assert not c.sim.stack.gripper_closed
+        await gripper.grab(1)
+        assert c.sim.stack.gripper_closed  # the vehicle's side: closed
+        await gripper.release(1)
+        assert not c.sim.stack.gripper_closed

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import math
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
@@ -179,7 +180,7 @@ async def test_sample_listeners_feed_a_state_history_at_the_telemetry_rate() -> 
         now_s = asyncio.get_running_loop().time()
         tel = v.telemetry()
     pos_times = [t for kind, t, _ in stamps if kind == "PositionVelocityNed"]
-    gaps = [b - a for a, b in zip(pos_times, pos_times[1:], strict=False)]
+    gaps = [b - a for a, b in itertools.pairwise(pos_times)]
     assert len(pos_times) > 100 and min(gaps) >= 0.02 - 1e-9 and max(gaps) <= 0.02 + 0.011  # 50 Hz (100 Hz physics)
     assert all(t == r for _, t, r in stamps)  # stamped when taken: no link in between
     state = history.at(now_s - 0.5)

@@ -1,0 +1,155 @@
+"""Where guidance takes the vehicle in the pickup mission: target sources for the setpoint loop.
+
+- ``SearchPattern``: an expanding square around a centre at a fixed height above home; the legs are one
+  camera footprint apart (less the overlap), the target point moves along them at the search speed (with its
+  velocity as feed-forward), and the pattern ends at ``max_radius_m`` (the state's timeout bounds the time).
+- ``ObjectTarget``: above the object's estimate at a height above the *sea* (the radar's height, not home);
+  with no estimate the loop holds. ``DescendTarget`` lowers that height at ``descend_speed`` only while the
+  fix is fresh and the filter converged; otherwise it climbs back to the safety height, so the vehicle is
+  never below it without a fresh converged fix. It aims at where the filter predicts the object at
+  touchdown.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+
+from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot, Vec3
+from app.missions.pickup import PickupEstimates
+
+Telemetry = Callable[[], TelemetrySnapshot]
+MAX_LEAD_S = 1.0  # aim at most this far ahead: a wave prediction further out is worth little
+
+
+def expanding_square(
+    centre_ne_m: tuple[float, float], spacing_m: float, max_radius_m: float
+) -> list[tuple[float, float]]:
+    """Waypoints (NE) of an expanding square: legs of 1, 1, 2, 2, 3, 3 … spacings, turning clockwise."""
+    pts = [centre_ne_m]
+    n, e = centre_ne_m
+    heading = [(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)]  # north, east, south, west
+    leg, k = 1, 0
+    while leg * spacing_m / 2.0 <= max_radius_m:
+        for _ in range(2):
+            dn, de = heading[k % 4]
+            n, e = n + dn * leg * spacing_m, e + de * leg * spacing_m
+            if max(abs(n - centre_ne_m[0]), abs(e - centre_ne_m[1])) > max_radius_m:
+                return pts
+            pts.append((n, e))
+            k += 1
+        leg += 1
+    return pts
+
+
+class SearchPattern:
+    name = "search"
+
+    def __init__(
+        self, waypoints: list[tuple[float, float]], altitude_down_m: float, speed_mps: float, t0_s: float
+    ) -> None:
+        self.waypoints = waypoints
+        self.down_m = altitude_down_m
+        self.speed_mps = speed_mps
+        self.t0_s = t0_s
+        self._cum = [0.0]
+        for a, b in itertools.pairwise(waypoints):
+            self._cum.append(self._cum[-1] + math.hypot(b[0] - a[0], b[1] - a[1]))
+
+    @property
+    def length_m(self) -> float:
+        return self._cum[-1]
+
+    def done(self, t_s: float) -> bool:
+        return (t_s - self.t0_s) * self.speed_mps >= self.length_m
+
+    def target_at(self, t_s: float) -> TargetState:
+        s = min(max(0.0, (t_s - self.t0_s) * self.speed_mps), self.length_m)
+        i = max(0, min(len(self._cum) - 2, next((k for k, c in enumerate(self._cum) if c > s), len(self._cum)) - 1))
+        if len(self.waypoints) < 2:
+            n, e = self.waypoints[0]
+            return TargetState(t_s, (n, e, self.down_m), (0.0, 0.0, 0.0))
+        (n0, e0), (n1, e1) = self.waypoints[i], self.waypoints[i + 1]
+        seg = max(self._cum[i + 1] - self._cum[i], 1e-9)
+        f = min(1.0, (s - self._cum[i]) / seg)
+        moving = s < self.length_m
+        vn, ve = ((n1 - n0) / seg * self.speed_mps, (e1 - e0) / seg * self.speed_mps) if moving else (0.0, 0.0)
+        return TargetState(t_s, (n0 + f * (n1 - n0), e0 + f * (e1 - e0), self.down_m), (vn, ve, 0.0))
+
+    def observe(self, sample: PositionVelocityNed) -> None:
+        pass
+
+
+class ObjectTarget:
+    """Above the object estimate at ``height_m`` above the sea; ``None`` (hold) without an estimate."""
+
+    name = "object"
+
+    def __init__(self, model: PickupEstimates, telemetry: Telemetry, height_m: float) -> None:
+        self.model = model
+        self.telemetry = telemetry
+        self.height_m = height_m
+
+    def _sea_down_m(self, t_s: float) -> float | None:
+        pv = self.telemetry().pos_vel
+        h = self.model.height_above_sea_m(t_s)
+        return None if pv is None or h is None else pv.pos_ned_m[2] + h
+
+    def _aim(self, t_s: float, lead_s: float, height_m: float) -> TargetState | None:
+        f = self.model.filter
+        if not f.initialised or f.estimate(t_s) is None:  # no lock, or the lock timed out
+            return None
+        est = f.estimate(t_s + lead_s) or f.estimate(t_s)  # a prediction past the filter's timeout: now
+        sea_down = self._sea_down_m(t_s)
+        if est is None or sea_down is None:
+            return None
+        return TargetState(
+            t_s, (est.pos_ned_m[0], est.pos_ned_m[1], sea_down - height_m), est.vel_ned_mps, est.acc_ned_mps2
+        )
+
+    def target_at(self, t_s: float) -> TargetState | None:
+        return self._aim(t_s, 0.0, self.height_m)
+
+    def observe(self, sample: PositionVelocityNed) -> None:
+        pass
+
+
+class DescendTarget(ObjectTarget):
+    name = "descend"
+
+    def __init__(
+        self,
+        model: PickupEstimates,
+        telemetry: Telemetry,
+        start_height_m: float,
+        speed_mps: float,
+        safety_height_m: float,
+        fresh_s: float,
+        converged_s: float,
+    ) -> None:
+        super().__init__(model, telemetry, start_height_m)
+        self.speed_mps = speed_mps
+        self.safety_height_m = safety_height_m
+        self.fresh_s = fresh_s
+        self.converged_s = converged_s
+        self._t_s: float | None = None
+
+    def target_at(self, t_s: float) -> TargetState | None:
+        dt_s = 0.0 if self._t_s is None else max(0.0, t_s - self._t_s)
+        self._t_s = t_s
+        snap = self.model.snapshot(t_s)
+        # DESCEND was entered after ``converged_s`` of convergence; going on down needs a fresh fix and a
+        # filter that is converged now
+        good = snap.fix_age_s is not None and snap.fix_age_s <= self.fresh_s and snap.converged_for_s is not None
+        if good:
+            self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
+        else:  # climb back to (and wait at) the safety height
+            self.height_m = max(self.height_m, self.safety_height_m)
+        # aim where the object will be when the vehicle gets down (the last second of the descent matters)
+        lead_s = min(self.height_m / self.speed_mps, MAX_LEAD_S) if good else 0.0
+        return self._aim(t_s, lead_s, self.height_m)
+
+
+def horizontal_distance_m(a: Vec3, b: Vec3) -> float:
+    return math.hypot(a[0] - b[0], a[1] - b[1])

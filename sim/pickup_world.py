@@ -1,0 +1,110 @@
+"""The pickup's world for in-process runs: the sea, the floating object, and the sensors the app reads.
+
+The in-process vehicle (``sim.inproc``) flies; this adds what the camera and the radar would report, at
+their own rates and with their latency, computed from the truth:
+
+- camera (geometric mode, ``sim.camera_geometry``): every ``frame_period_s`` the marker's corners projected
+  from the vehicle's true pose, handed to the mission ``latency_s`` later with the *capture* time;
+- radar: the radar's true height above the sea surface under the vehicle (waves included), plus noise.
+
+It also judges the pickup from the truth: where the gripper touched the water relative to the object when
+the gripper closed (``touchdown_error_m``) and whether the object was caught: within ``capture_radius_m``
+and with a gentle touchdown (vertical speed ≤ ``gentle_mps``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from app.missions.pickup import PickupEstimates
+from app.settings import CameraSettings
+from sim.camera_geometry import GeometricCamera
+from sim.inproc import InProcessVehicle
+from sim.sea import FloatingObject, SeaConfig, SeaWorld
+
+
+@dataclass
+class PickupScenario:
+    seed: int = 1
+    sea_state: int = 2
+    current_mps: float = 0.3
+    object_start_ne_m: tuple[float, float] = (40.0, 20.0)
+    marker_size_m: float = 0.30
+    frame_period_s: float = 1.0 / 15.0
+    latency_s: float = 0.06
+    pixel_noise_px: float = 0.5
+    radar_noise_m: float = 0.02
+    capture_radius_m: float = 0.25
+    gentle_mps: float = 1.0
+
+
+@dataclass
+class PickupOutcome:
+    touchdown_error_m: float | None = None
+    touchdown_speed_mps: float | None = None
+    caught: bool = False
+    grabs: list[dict[str, Any]] = field(default_factory=list)
+
+
+class PickupWorld:
+    def __init__(self, vehicle: InProcessVehicle, scenario: PickupScenario, camera: CameraSettings) -> None:
+        self.vehicle = vehicle
+        self.scenario = sc = scenario
+        self.sea = SeaWorld(SeaConfig(sea_state=sc.sea_state, current_mps=sc.current_mps), seed=sc.seed)
+        self.object = FloatingObject(self.sea, start_ne_m=sc.object_start_ne_m)
+        self.camera = GeometricCamera(
+            camera, marker_size_m=sc.marker_size_m, pixel_noise_std_px=sc.pixel_noise_px, seed=sc.seed
+        )
+        self.rng = np.random.default_rng(sc.seed + 1000)
+        self.outcome = PickupOutcome()
+        self._gripper_closed = False
+        # per camera frame, from the truth and the mission's snapshot: (t_s, height above the sea, down speed,
+        # fix age or None) — for checking descents from the vehicle's side
+        self.samples: list[tuple[float, float, float, float | None]] = []
+
+    async def sensors(self, model: object) -> None:
+        """The camera and radar feeding ``model`` (a ``PickupEstimates``) until cancelled."""
+        if not isinstance(model, PickupEstimates):
+            raise TypeError("the pickup world feeds the pickup mission's estimates")
+        loop = asyncio.get_running_loop()
+        pending: list[tuple[float, np.ndarray | None]] = []
+        next_s = loop.time()
+        sc = self.scenario
+        while True:
+            next_s += sc.frame_period_s
+            await asyncio.sleep(max(0.0, next_s - loop.time()))
+            t_s = loop.time()
+            truth = self.vehicle.truth()
+            self._judge_grab(t_s, truth)
+            o = self.object.state(t_s)
+            p = truth.pos_ned_m
+            sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
+            model.on_height(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m)))
+            self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], model.snapshot(t_s).fix_age_s))
+            f = self.camera.frame(t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, o.pos_ned_m)
+            pending.append((t_s, f.corners_px if f.visible else None))
+            while pending and pending[0][0] + sc.latency_s <= t_s:
+                t_capture_s, corners = pending.pop(0)
+                if corners is None:
+                    model.on_frame(t_capture_s)
+                else:
+                    model.on_marker(t_capture_s, corners)
+
+    def _judge_grab(self, t_s: float, truth: Any) -> None:
+        if truth.gripper_closed and not self._gripper_closed:
+            o = self.object.state(t_s)
+            err = math.hypot(truth.pos_ned_m[0] - o.pos_ned_m[0], truth.pos_ned_m[1] - o.pos_ned_m[1])
+            height = -float(self.sea.surface_elevation_m(t_s, *truth.pos_ned_m[:2])) - truth.pos_ned_m[2]
+            speed = abs(truth.vel_ned_mps[2])
+            caught = err <= self.scenario.capture_radius_m and speed <= self.scenario.gentle_mps and height < 0.5
+            self.outcome.grabs.append(
+                {"t_s": t_s, "error_m": err, "height_m": height, "speed_mps": speed, "caught": caught}
+            )
+            self.outcome.touchdown_error_m, self.outcome.touchdown_speed_mps = err, speed
+            self.outcome.caught = self.outcome.caught or caught
+        self._gripper_closed = truth.gripper_closed

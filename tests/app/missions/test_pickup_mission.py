@@ -1,0 +1,50 @@
+"""The whole pickup in virtual time on the in-process vehicle, with the geometric camera and radar heights
+(``sim.pickup_world``): search, approach, track, descend onto the drifting object, grab, lift, fly home, land.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from app.clock import LoopClock
+from app.eventlog import EventLog
+from app.main import fly_mission
+from app.missions.table import load_mission
+from app.settings import Settings
+from sim.inproc import InProcessVehicle
+from sim.pickup_world import PickupScenario, PickupWorld
+from sim.wind import WindConfig
+
+
+async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None):
+    settings = Settings()
+    vehicle = InProcessVehicle(seed=scenario.seed, wind=wind)
+    world = PickupWorld(vehicle, scenario, settings.camera)
+    table = load_mission("pickup")
+    flight = await fly_mission(vehicle, table, settings, LoopClock(), EventLog(None), sensors=[world.sensors])
+    return flight, world, table.params
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_calm_sea_pickup_goes_through_every_state_and_catches_the_object():
+    wall0 = time.perf_counter()
+    flight, world, p = await fly_pickup(PickupScenario(seed=1, sea_state=0, current_mps=0.1), WindConfig.off())
+    wall_s = time.perf_counter() - wall0
+    out = world.outcome
+    print(f"{flight.result.states_visited}; {flight.duration_s:.0f} s of mission in {wall_s:.1f} s")
+    print(f"touchdown error {out.touchdown_error_m:.3f} m at {out.touchdown_speed_mps:.2f} m/s; {flight.figures}")
+    assert flight.result.outcome == "completed"
+    assert flight.result.states_visited == [
+        "WAIT_FOR_START", "TAKEOFF", "GOTO_SEARCH", "SEARCH", "APPROACH", "TRACK", "DESCEND", "GRAB", "LIFT",
+        "RETURN", "LAND_HOME", "DONE",
+    ]  # fmt: skip
+    assert out.caught and len(out.grabs) == 1
+    assert out.touchdown_error_m <= world.scenario.capture_radius_m  # the issue's goal is 0.10 m: not yet
+    # from the vehicle's side: never descending onto the sea below the safety height without a fresh fix
+    # (until the grab; LAND_HOME is the autopilot landing at home, not on the object)
+    grab_s = out.grabs[0]["t_s"]
+    for t_s, height_m, down_mps, fix_age_s in world.samples:
+        if t_s < grab_s and height_m < p.safety_height_m - 0.3 and down_mps > 0.2:
+            assert fix_age_s is not None and fix_age_s <= p.fix_fresh_s + 0.5, (t_s, height_m, down_mps, fix_age_s)
