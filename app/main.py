@@ -33,7 +33,7 @@ from app.messages import Autopilot
 from app.missions.estimates import MissionModel
 from app.missions.pickup import FixChecks, PickupEstimates
 from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
-from app.missions.table import MissionTable, load_mission
+from app.missions.table import SUCCESS, MissionTable, load_mission
 from app.offboard.boundary import BoundaryParams, VehicleBoundary
 from app.offboard.envelope import EnvelopeLimits
 from app.offboard.guidance import ConstantBearingParams
@@ -354,8 +354,8 @@ def main(argv: list[str] | None = None) -> int:
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if summary.get("tracking_samples"):
         print(tracking_report(summary))
-    if summary["outcome"] == "completed":
-        print(f"seapick: mission {table.mission} completed in {summary['duration_s']:.1f} s ({run_dir})")
+    if summary["outcome"] in SUCCESS:
+        print(f"seapick: mission {table.mission} {summary['outcome']} in {summary['duration_s']:.1f} s ({run_dir})")
         return 0
     print(f"seapick: mission {table.mission} {summary['outcome']}: {summary['reason']}", file=sys.stderr)
     return 1

@@ -9,7 +9,8 @@ their own rates and with their latency, computed from the truth:
 
 It also judges the pickup from the truth: where the gripper touched the water relative to the object when
 the gripper closed (``touchdown_error_m``) and whether the object was caught: within ``capture_radius_m``
-and with a gentle touchdown (vertical speed ≤ ``gentle_mps``).
+and with a gentle touchdown (vertical speed ≤ ``gentle_mps``); ``fail_first_grabs`` makes the first grabs
+miss regardless. A caught object hangs in the gripper: the camera no longer sees it on the sea.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ class PickupScenario:
     radar_noise_m: float = 0.02
     capture_radius_m: float = 0.25
     gentle_mps: float = 1.0
+    fail_first_grabs: int = 0  # these many grabs miss whatever the touchdown (a gripper that slipped)
 
 
 @dataclass
@@ -87,7 +89,8 @@ class PickupWorld:
             model.on_height(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m)))
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], model.snapshot(t_s).fix_age_s))
             f = self.camera.frame(t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, o.pos_ned_m)
-            pending.append((t_s, f.corners_px if f.visible else None))
+            # a caught object hangs in the gripper, out of the camera's sea
+            pending.append((t_s, f.corners_px if f.visible and not self.outcome.caught else None))
             while pending and pending[0][0] + sc.latency_s <= t_s:
                 t_capture_s, corners = pending.pop(0)
                 if corners is None:
@@ -101,9 +104,18 @@ class PickupWorld:
             err = math.hypot(truth.pos_ned_m[0] - o.pos_ned_m[0], truth.pos_ned_m[1] - o.pos_ned_m[1])
             height = -float(self.sea.surface_elevation_m(t_s, *truth.pos_ned_m[:2])) - truth.pos_ned_m[2]
             speed = abs(truth.vel_ned_mps[2])
-            caught = err <= self.scenario.capture_radius_m and speed <= self.scenario.gentle_mps and height < 0.5
+            sc = self.scenario
+            slipped = len(self.outcome.grabs) < sc.fail_first_grabs
+            caught = err <= sc.capture_radius_m and speed <= sc.gentle_mps and height < 0.5 and not slipped
             self.outcome.grabs.append(
-                {"t_s": t_s, "error_m": err, "height_m": height, "speed_mps": speed, "caught": caught}
+                {
+                    "t_s": t_s,
+                    "error_m": err,
+                    "height_m": height,
+                    "speed_mps": speed,
+                    "caught": caught,
+                    "slipped": slipped,
+                }
             )
             self.outcome.touchdown_error_m, self.outcome.touchdown_speed_mps = err, speed
             self.outcome.caught = self.outcome.caught or caught

@@ -126,8 +126,27 @@ async def start_descend(io: MissionIO) -> None:
 
 async def grab(io: MissionIO) -> None:
     """Close the gripper (MAV_CMD_DO_GRIPPER) and keep the position meanwhile."""
+    _pickup(io).grab_attempts += 1
     io.setpoints.engage(None, allow_below_min=True)
     await io.boundary.grip(True)
+
+
+async def start_verify(io: MissionIO) -> None:
+    """Climb ``verify_height_m`` straight up from the water: a caught object leaves the camera's sea."""
+    pv = io.boundary.telemetry().pos_vel
+    if pv is None:
+        return
+    n, e, d = pv.pos_ned_m
+    io.setpoints.engage(FixedPoint("verify", (n, e, d - io.params.verify_height_m)), allow_below_min=True)
+
+
+async def confirm_pickup(io: MissionIO) -> None:
+    _pickup(io).picked_up = True
+
+
+async def release(io: MissionIO) -> None:
+    """Open the gripper (before another grab, or to drop what a failed grab may hold)."""
+    await io.boundary.grip(False)
 
 
 async def lift(io: MissionIO) -> None:
@@ -157,5 +176,8 @@ ACTIONS: dict[str, ActionSpec] = {
     "start_descend": ActionSpec(start_descend, ("offboard",), "pickup"),
     "grab": ActionSpec(grab, ("offboard",), "pickup"),
     "lift": ActionSpec(lift, ("offboard",), "pickup"),
+    "start_verify": ActionSpec(start_verify, ("offboard",), "pickup"),
+    "confirm_pickup": ActionSpec(confirm_pickup, None, "pickup"),
+    "release": ActionSpec(release, ("offboard",), "pickup"),
     "return_home": ActionSpec(return_home, ("offboard",), "pickup"),
 }

@@ -144,6 +144,34 @@ def grab_settled(ctx: GuardContext) -> bool:
     return ctx.time_in_state_s >= GRAB_SETTLE_S
 
 
+def _seen_on_sea(ctx: GuardContext) -> bool:
+    """Up at the verify height, the camera still fixes the object on the sea: the grab missed it."""
+    h = ctx.estimates.height_above_sea_m
+    up = h is not None and h >= ctx.params.verify_height_m - 0.5
+    return up and ctx.time_in_state_s >= 0.5 and _fresh(ctx)
+
+
+def grab_failed(ctx: GuardContext) -> bool:
+    """Missed, with retries left."""
+    return _seen_on_sea(ctx) and ctx.estimates.progress.get("grab_attempts", 0.0) <= ctx.params.grab_retries
+
+
+def grab_failed_finally(ctx: GuardContext) -> bool:
+    return _seen_on_sea(ctx) and ctx.estimates.progress.get("grab_attempts", 0.0) > ctx.params.grab_retries
+
+
+def object_in_gripper(ctx: GuardContext) -> bool:
+    """Up at the verify height for ``verify_time_s`` and no fix of the object on the sea since the climb began."""
+    e, h = ctx.estimates, ctx.estimates.height_above_sea_m
+    up = h is not None and h >= ctx.params.verify_height_m - 0.5
+    no_fix_since_grab = e.fix_age_s is None or e.fix_age_s >= ctx.time_in_state_s
+    return up and ctx.time_in_state_s >= ctx.params.verify_time_s and no_fix_since_grab
+
+
+def disarmed_with_object(ctx: GuardContext) -> bool:
+    return disarmed(ctx) and ctx.estimates.progress.get("picked_up", 0.0) >= 1.0
+
+
 def at_lift_altitude(ctx: GuardContext) -> bool:
     h = ctx.telemetry.height_above_home_m()
     return h is not None and h >= ctx.params.lift_altitude_m - ctx.params.altitude_tolerance_m
@@ -176,6 +204,10 @@ GUARDS: dict[str, Guard] = {
         target_lost,
         touchdown,
         grab_settled,
+        grab_failed,
+        grab_failed_finally,
+        object_in_gripper,
+        disarmed_with_object,
         at_lift_altitude,
         above_home,
     )

@@ -62,5 +62,12 @@ class MissionParams(BaseModel):
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
     size_tolerance: float = Field(0.35, ge=0.05, le=1.0, description="apparent size within this of the expected")
     confirm_frames: int = Field(3, ge=1, le=30, description="agreeing fixes before a new lock, count")
+    verify_height_m: float = Field(
+        1.5, ge=0.5, le=10.0, description="after the grab, climb this high above the sea and look for the object, m"
+    )
+    verify_time_s: float = Field(
+        2.0, ge=0.5, le=30.0, description="no fix of the object on the sea for this long = it is in the gripper, s"
+    )
+    grab_retries: int = Field(2, ge=0, le=10, description="grabs after a failed one before giving up, count")
     lift_altitude_m: float = Field(5.0, ge=1.0, le=60.0, description="climb to this above home after the grab, m")
     return_altitude_m: float = Field(10.0, ge=2.0, le=60.0, description="fly home at this height above home, m")

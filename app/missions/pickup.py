@@ -93,6 +93,8 @@ class PickupEstimates:
         self.search_centre_ne_m = search_centre_ne_m  # where SEARCH searches; moves to the last estimate on a loss
         self.search: SearchPattern | None = None
         self.last_estimate_ne_m: tuple[float, float] | None = None
+        self.grab_attempts = 0
+        self.picked_up = False
 
     def footprint_m(self, height_m: float) -> float:
         """The camera footprint's narrower side on the sea from ``height_m`` (nadir view), m."""
@@ -195,6 +197,8 @@ class PickupEstimates:
             "search_centre_n_m": self.search_centre_ne_m[0],
             "search_centre_e_m": self.search_centre_ne_m[1],
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
+            "grab_attempts": float(self.grab_attempts),
+            "picked_up": 1.0 if self.picked_up else 0.0,
         }
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,
@@ -212,4 +216,10 @@ class PickupEstimates:
         )
 
     def summary(self) -> dict[str, Any]:
-        return {"fixes": self.fixes, "fixes_rejected": dict(self.rejected)}
+        return {
+            "picked_up": self.picked_up,
+            "grab_attempts": self.grab_attempts,
+            "retries": max(0, self.grab_attempts - 1),
+            "fixes": self.fixes,
+            "fixes_rejected": dict(self.rejected),
+        }

@@ -34,7 +34,7 @@ from app.missions.circle import CircleMission
 from app.missions.estimates import MissionModel, NoEstimates
 from app.missions.guards import GUARDS, GuardContext
 from app.missions.params import MissionParams
-from app.missions.table import MissionTable, StateSpec
+from app.missions.table import SUCCESS, MissionTable, StateSpec
 from app.offboard.boundary import VehicleBoundary
 from app.offboard.mode_watch import Takeover
 from app.offboard.setpoint_loop import SetpointLoop
@@ -213,7 +213,7 @@ class MissionRunner:
         if spec.control != "offboard" and not spec.manual:
             self.setpoints.disengage()
         if spec.terminal is not None:
-            outcome_reason = reason if spec.terminal != "completed" else "completed"
+            outcome_reason = reason if spec.terminal not in SUCCESS else spec.terminal
             self._result = RunResult(spec.terminal, outcome_reason, self.states_visited, name)
             self._events.write(now_s, "run", event="finished", outcome=spec.terminal, reason=reason, previous=previous)
         assert self._tg is not None

@@ -8,7 +8,7 @@ A table has ``mission`` (name), ``initial`` (state), ``params`` (``MissionParams
                                                 needs abort_requested, link_lost, position_lost and
                                                 setpoints_failing (``guards.LINK_GUARDS``)
     timeout_s / on_timeout                      required for every flying state and for MANUAL
-    terminal:    completed | aborted | failed | pilot   (the run's outcome; no transitions)
+    terminal:    completed | picked_up | aborted | failed | pilot   (the run's outcome; no transitions)
     manual: true                                the state the runner enters when the pilot takes over
     resume: {STATE: STATE}, resume_default      (manual only) where to go when control is handed back
     abort: true                                 marks the ABORT state
@@ -32,7 +32,8 @@ from app.settings import format_validation_error, load_yaml
 MISSIONS_DIR = Path(__file__).resolve().parent
 
 Control = Literal["none", "autopilot", "offboard"]
-Outcome = Literal["completed", "aborted", "failed", "pilot"]
+Outcome = Literal["completed", "picked_up", "aborted", "failed", "pilot"]
+SUCCESS: frozenset[str] = frozenset({"completed", "picked_up"})  # outcomes that exit 0
 
 
 class _Model(BaseModel):
@@ -135,8 +136,8 @@ def validate_table(table: MissionTable, source: str) -> None:
         fail("states", f"exactly one state needs 'abort: true' (found {len(aborts)})")
     if len(manuals) != 1:
         fail("states", f"exactly one state needs 'manual: true' (found {len(manuals)})")
-    if not any(s.terminal == "completed" for s in states.values()):
-        fail("states", "no state has 'terminal: completed'")
+    if not any(s.terminal in SUCCESS for s in states.values()):
+        fail("states", "no state has 'terminal: completed' (or picked_up)")
 
     for name, s in states.items():
         base = f"states.{name}"
