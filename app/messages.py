@@ -1,8 +1,11 @@
-"""Frozen messages that travel between the parts of the app.
+"""Frozen messages and value types that travel between the parts of the app.
 
 Every message carries ``t_s``: the loop-clock time it was *measured* (for telemetry: when the autopilot took
 the sample, or when it was received — never when it was read), not the time it was used. Vectors are
 ``(north, east, down)`` tuples in metres or metres per second, as their names say (``_ned_m``, ``_ned_mps``).
+
+The sensors produce these and the estimators consume them, so they live here rather than in either: data
+flows one way, from ``app.sensors`` to ``app.estimators``, and neither imports the other.
 """
 
 from __future__ import annotations
@@ -10,10 +13,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Generic, TypeVar
+from typing import TYPE_CHECKING, Generic, TypeVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from app.settings import CameraSettings
 
 Vec3 = tuple[float, float, float]
+FloatArray = NDArray[np.float64]
 T = TypeVar("T")
+
+# Points closer to the image plane than this (along z_cam) cannot be projected, m.
+MIN_DEPTH_M = 1e-9
 
 
 class FlightMode(StrEnum):
@@ -205,3 +218,141 @@ class PixelDetection:
     size_m: float  # the physical edge length / diameter of what was seen, m
     marker_id: int  # the marker's ID (a nested one near touchdown); -1 for a buoy
     tracked: bool  # found in the tracking window (False: by a full-frame search)
+
+
+@dataclass(frozen=True, slots=True)
+class RangeAxis:
+    """Ranges of a radar frame's bins: ``r[k] = start_m + k·bin_m`` for k in 0..bins−1."""
+
+    start_m: float
+    bin_m: float
+    bins: int
+
+    @property
+    def end_m(self) -> float:
+        return self.start_m + (self.bins - 1) * self.bin_m
+
+    def ranges_m(self) -> np.ndarray:
+        return self.start_m + self.bin_m * np.arange(self.bins)
+
+    def bin_of(self, range_m: float) -> float:
+        """Fractional bin index of ``range_m``."""
+        return (range_m - self.start_m) / self.bin_m
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class RadarFrame:
+    """One radar frame: complex baseband ``I + jQ`` per bin (the X4 sends Q negated: only the phase sign).
+
+    It carries its own range axis, so a consumer never guesses the geometry.
+    """
+
+    t_s: float  # loop time the frame was measured (the driver: received minus the sweep's half)
+    frame_counter: int
+    axis: RangeAxis
+    baseband: np.ndarray  # complex64, shape (axis.bins,)
+
+    @staticmethod
+    def from_floats(t_s: float, frame_counter: int, axis: RangeAxis, values: np.ndarray) -> RadarFrame:
+        """From the DataFloat values of downconversion 1: the I block, then the Q block."""
+        if values.size != 2 * axis.bins:
+            raise ValueError(f"a {axis.bins}-bin baseband frame has {2 * axis.bins} floats, got {values.size}")
+        baseband = (values[: axis.bins] + 1j * values[axis.bins :]).astype(np.complex64)
+        return RadarFrame(t_s, frame_counter, axis, baseband)
+
+    def amplitude(self) -> np.ndarray:
+        """|I + jQ| per bin (thesis §4.2.2)."""
+        return np.abs(self.baseband)
+
+
+@dataclass(frozen=True, slots=True)
+class CameraModel:
+    """The pinhole camera with OpenCV lens distortion (thesis §2.3.2, eqs. 2.6–2.9): intrinsics ``K`` (px) and
+    distortion ``k1 k2 p1 p2 [k3 …]`` of one camera.
+
+    Camera frame ``_cam``: OpenCV convention — x right in the image, y down in the image, z along the
+    optical axis (out of the lens). Pixels ``(u, v)``: u to the right, v down, origin at the top-left
+    pixel's corner as OpenCV counts it.
+
+    Only *points* are undistorted (``cv2.undistortPoints``), never whole images: a detector finds corners
+    in the raw image, and this model turns those pixels into rays. OpenCV is imported by the methods that
+    need it: most importers of these messages (the simulated autopilot, the offboard link) never project a
+    point and should not pay for loading it.
+    """
+
+    fx_px: float
+    fy_px: float
+    cx_px: float
+    cy_px: float
+    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    width_px: int = 1280
+    height_px: int = 960
+
+    @classmethod
+    def from_settings(cls, cam: CameraSettings) -> CameraModel:
+        return cls(
+            fx_px=cam.fx_px,
+            fy_px=cam.fy_px,
+            cx_px=cam.cx_px,
+            cy_px=cam.cy_px,
+            distortion=tuple(float(d) for d in cam.distortion),
+            width_px=cam.width_px,
+            height_px=cam.height_px,
+        )
+
+    @property
+    def K(self) -> FloatArray:
+        """The 3×3 projection matrix of eq. 2.6."""
+        return np.array(
+            [[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px], [0.0, 0.0, 1.0]], dtype=np.float64
+        )
+
+    @property
+    def dist_coeffs(self) -> FloatArray:
+        return np.asarray(self.distortion, dtype=np.float64)
+
+    def undistort_to_normalized(self, pixels: ArrayLike) -> FloatArray:
+        """Raw (distorted) pixels N×2 → ideal normalized image coordinates ``(x/z, y/z)`` N×2."""
+        import cv2
+
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
+        if px.shape[0] == 0:
+            return np.zeros((0, 2))
+        # Iterative inverse of eq. 2.9 (OpenCV default: 5 iterations is too coarse for strong distortion).
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
+        xy = cv2.undistortPointsIter(px, self.K, self.dist_coeffs, np.eye(3), np.eye(3), criteria)
+        return np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+
+    def undistort_to_rays(self, pixels: ArrayLike) -> FloatArray:
+        """Raw pixels N×2 → unit rays in the camera frame N×3 (z > 0)."""
+        xy = self.undistort_to_normalized(pixels)
+        rays = np.column_stack([xy, np.ones(len(xy))])
+        return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+    def project(self, points_cam: ArrayLike) -> FloatArray:
+        """Points in the camera frame N×3 (m, z > 0) → raw (distorted) pixels N×2 (eqs. 2.6 + 2.9).
+
+        Points behind the camera (z ≤ 0) give NaN pixels.
+        """
+        import cv2
+
+        p = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
+        out = np.full((len(p), 2), np.nan)
+        front = p[:, 2] > MIN_DEPTH_M
+        if np.any(front):
+            img, _ = cv2.projectPoints(p[front].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist_coeffs)
+            out[front] = img.reshape(-1, 2)
+        return out
+
+    def in_image(self, pixels: ArrayLike, margin_px: float = 0.0) -> NDArray[np.bool_]:
+        """Which pixels N×2 fall inside the image (with ``margin_px`` kept clear of the border)."""
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        u, v = px[:, 0], px[:, 1]
+        return (
+            np.isfinite(u)
+            & np.isfinite(v)
+            & (u >= margin_px)
+            & (v >= margin_px)
+            & (u <= self.width_px - 1 - margin_px)
+            & (v <= self.height_px - 1 - margin_px)
+        )

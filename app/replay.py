@@ -35,7 +35,7 @@ from app.estimators.radar_altitude import (
     RadarAltitudeEstimator,
     calibrate_background,
 )
-from app.sensors.radar import RangeAxis
+from app.messages import RangeAxis
 from app.sensors.x4m03_recording import DEFAULT_FPS_HZ, Recording, read_recording
 from app.settings import RadarAltitudeSettings
 

@@ -19,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from app.messages import Vec3
-from app.sensors.camera_model import CameraModel
+from app.messages import CameraModel, Vec3
 from app.settings import CameraSettings
 
 FloatArray = NDArray[np.float64]

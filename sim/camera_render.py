@@ -29,8 +29,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from app.messages import CameraModel
 from app.sensors.camera import ExposureControls
-from app.sensors.camera_model import CameraModel
 from app.settings import CameraSettings, DetectorSettings
 from sim.camera_render_poses import Pose
 from sim.camera_render_textures import (

@@ -31,7 +31,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from app.cli import OneLineParser, number, run_cli
-from app.sensors.radar import RangeAxis
+from app.messages import RangeAxis
 from sim.radar_firmware import FirmwareConfig, FirmwareFaults, X4M03Firmware
 from sim.radar_signal import RadarSignalConfig, SeaRadarScene
 from sim.radar_track import TrackConfig, VehicleTrack

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from app.cli import OneLineParser, int_list, number, run_cli
-from app.sensors.radar import RadarFrame
+from app.messages import RadarFrame
 from app.sensors.x4m03_frame_area import quantise_frame_area
 from app.sensors.x4m03_recording import RecordingWriter
 from sim.radar_firmware import measured_fps

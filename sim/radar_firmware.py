@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.messages import RangeAxis
 from app.sensors import x4m03_codec as codec
 from app.sensors import x4m03_commands as cmd
-from app.sensors.radar import RangeAxis
 from app.sensors.x4m03_commands import X4Param
 from app.sensors.x4m03_frame_area import quantise_frame_area
 

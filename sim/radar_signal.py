@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate
 
-from app.sensors.radar import RangeAxis
+from app.messages import RangeAxis
 from sim.radar_track import Pose, VehicleTrack, rotation_body_to_ned
 from sim.sea import SeaWorld
 

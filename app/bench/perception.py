@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from app.cli import OneLineParser, number, run_child
-from app.sensors.camera_model import CameraModel
+from app.messages import CameraModel
 from app.sensors.detect import DetectionHint
 from app.sensors.detect_marker import MarkerDetector
 from app.settings import CameraSettings, DetectorSettings

@@ -1,16 +1,33 @@
-"""Build the target filter a mission asks for."""
+"""Build the target filter a mission asks for.
+
+The choice is described by its shape (:class:`TargetFilterChoice`), not by the mission's parameter class:
+the estimators never import the missions that use them. ``MissionParams`` fits it as it is.
+"""
 
 from __future__ import annotations
+
+from typing import Literal, Protocol
 
 from app.estimators.cv_filter import ConstantVelocityFilter
 from app.estimators.sea_state import SEA_STATES
 from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.wave_filter import WaveFilter
-from app.missions.params import MissionParams
+
+TargetFilterKind = Literal["constant_velocity", "wave"]
 
 
-def make_target_filter(params: MissionParams) -> LinearTargetFilter:
-    if params.target_filter == "constant_velocity":
+class TargetFilterChoice(Protocol):
+    """Which motion model to run, and for the wave filter the expected WMO sea state (code 0–5)."""
+
+    @property
+    def target_filter(self) -> TargetFilterKind: ...
+
+    @property
+    def sea_state(self) -> int: ...
+
+
+def make_target_filter(choice: TargetFilterChoice) -> LinearTargetFilter:
+    if choice.target_filter == "constant_velocity":
         return ConstantVelocityFilter()
-    sea = SEA_STATES[params.sea_state]
+    sea = SEA_STATES[choice.sea_state]
     return WaveFilter(sea.hs_m, sea.tp_s)

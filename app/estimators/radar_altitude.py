@@ -43,7 +43,7 @@ from typing import Literal
 
 import numpy as np
 
-from app.sensors.radar import RadarFrame, RangeAxis
+from app.messages import RadarFrame, RangeAxis
 from app.settings import RadarAltitudeSettings
 
 RAYLEIGH_MEDIAN = math.sqrt(math.log(4.0))  # median of |CN(0, 1)|

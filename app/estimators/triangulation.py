@@ -31,8 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from app.estimators.rotations import euler_zyx_to_matrix, quat_to_matrix, skew
-from app.messages import TargetObservation, Vec3, VehicleStateNed
-from app.sensors.camera_model import CameraModel
+from app.messages import CameraModel, TargetObservation, Vec3, VehicleStateNed
 from app.settings import CameraSettings
 
 FloatArray = NDArray[np.float64]

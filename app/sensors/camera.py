@@ -1,8 +1,8 @@
 """The camera source: one interface that the V4L2 camera and the simulator (``sim.camera_render_source``) implement.
 
-A blocking capture runs in its own thread and hands frames to the asyncio loop through a one-slot, latest-wins
-handoff (:class:`LatestSlot`): when the consumer is slower than the camera, the older frame is dropped and
-counted, so the detector always gets the *newest* frame — never a stale buffered one (the thesis had to patch
+A blocking capture runs in its own thread and hands frames to the asyncio loop through a one-item, latest-wins
+queue (:class:`app.queues.LatestQueue`): when the consumer is slower than the camera, the older frame is dropped
+and counted, so the detector always gets the *newest* frame — never a stale buffered one (the thesis had to patch
 the oCam library for this, §4.2.3). Each frame is stamped with its capture time by a clock function the caller
 injects (mapped to the loop clock); this module reads no clock of its own.
 """
@@ -13,14 +13,14 @@ import asyncio
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Generic, Protocol, Self, TypeVar
+from typing import TYPE_CHECKING, Protocol, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
 from app.errors import AppError
+from app.queues import LatestQueue, QueueShutDown
 
-T = TypeVar("T")
 Image = NDArray[np.uint8]
 
 
@@ -78,29 +78,6 @@ class CameraSource(Protocol):
     async def __aexit__(self, *exc_info: object) -> None: ...
 
 
-class LatestSlot(Generic[T]):
-    """A one-item, latest-wins handoff between threads: ``put`` replaces an untaken item and counts it dropped."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._item: T | None = None
-        self.put_count = 0
-        self.dropped = 0
-
-    def put(self, item: T) -> None:
-        with self._lock:
-            if self._item is not None:
-                self.dropped += 1
-            self._item = item
-            self.put_count += 1
-
-    def take(self) -> T | None:
-        """The newest item put and not yet taken (``None`` if there is none); the slot is empty afterwards."""
-        with self._lock:
-            item, self._item = self._item, None
-            return item
-
-
 class FrameGrabber(Protocol):
     """A blocking frame producer, used only from the capture thread (the real V4L2 device, or a test double)."""
 
@@ -122,7 +99,7 @@ class _CaptureState:
 
 
 class ThreadedCamera:
-    """``CameraSource`` over a blocking :class:`FrameGrabber`: capture thread → :class:`LatestSlot` → the loop.
+    """``CameraSource`` over a blocking :class:`FrameGrabber`: capture thread → one-item queue → the loop.
 
     ``clock`` is called in the capture thread right after each grab and must return loop-clock seconds (the
     default event loop's ``loop.time`` does); ``latency_s`` is subtracted (exposure + readout before the grab
@@ -143,11 +120,9 @@ class ThreadedCamera:
         self._controls = controls or ExposureControls()
         self._pending_controls: ExposureControls | None = self._controls
         self._controls_lock = threading.Lock()
-        self._slot: LatestSlot[CameraFrame] = LatestSlot()
+        self._frames: LatestQueue[CameraFrame] = LatestQueue(maxsize=1)
         self._state = _CaptureState()
         self._thread: threading.Thread | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._new_frame = asyncio.Event()
 
     @property
     def controls(self) -> ExposureControls:
@@ -155,11 +130,11 @@ class ThreadedCamera:
 
     @property
     def dropped_frames(self) -> int:
-        return self._slot.dropped
+        return self._frames.dropped
 
     @property
     def captured_frames(self) -> int:
-        return self._slot.put_count
+        return self._frames.put_count
 
     def set_controls(self, controls: ExposureControls) -> None:
         with self._controls_lock:
@@ -167,10 +142,9 @@ class ThreadedCamera:
             self._pending_controls = controls
 
     def start(self) -> None:
-        """Start the capture thread (call from inside the running loop)."""
+        """Start the capture thread."""
         if self._thread is not None:
             return
-        self._loop = asyncio.get_running_loop()
         self._thread = threading.Thread(target=self._run, name=f"camera.capture[{self._grabber.name}]", daemon=True)
         self._thread.start()
 
@@ -190,16 +164,17 @@ class ThreadedCamera:
         await self.close()
 
     async def next_frame(self) -> CameraFrame:
-        while True:
-            self._new_frame.clear()
-            frame = self._slot.take()
-            if frame is not None:
-                return frame
-            if self._state.error is not None:
-                raise CameraError(self._grabber.name, "capture stopped") from self._state.error
-            if self._thread is None:
-                raise CameraError(self._grabber.name, "not started")
-            await self._new_frame.wait()
+        frame = self._frames.take()
+        if frame is not None:
+            return frame
+        if self._state.error is not None:
+            raise CameraError(self._grabber.name, "capture stopped") from self._state.error
+        if self._thread is None:
+            raise CameraError(self._grabber.name, "not started")
+        try:
+            return await self._frames.get()
+        except QueueShutDown:  # the capture thread failed while we waited
+            raise CameraError(self._grabber.name, "capture stopped") from self._state.error
 
     def _run(self) -> None:
         seq = 0
@@ -213,20 +188,11 @@ class ThreadedCamera:
                     in_effect = pending
                 image = self._grabber.grab()
                 t_s = self._clock() - self._latency_s
-                self._slot.put(CameraFrame(t_s=t_s, seq=seq, image=image, controls=in_effect))
+                self._frames.put(CameraFrame(t_s=t_s, seq=seq, image=image, controls=in_effect))
                 seq += 1
-                self._notify()
         except BaseException as e:  # the loop side re-raises it as CameraError
             self._state.error = e
-            self._notify()
-
-    def _notify(self) -> None:
-        loop = self._loop
-        if loop is not None and not loop.is_closed():
-            try:
-                loop.call_soon_threadsafe(self._new_frame.set)
-            except RuntimeError:  # loop closed between the check and the call
-                pass
+            self._frames.shutdown()
 
 
 if TYPE_CHECKING:

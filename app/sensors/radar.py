@@ -1,4 +1,5 @@
-"""The radar as the rest of the app sees it: frames on a range axis, one interface, its errors. Pure data.
+"""The radar as the rest of the app sees it: one interface and its errors (its frames, ``RadarFrame`` on a
+``RangeAxis``, are in ``app.messages``).
 
 ``Radar`` is the one interface per hardware kind: the X4M03 driver (``app.sensors.x4m03_driver``)
 implements it over a serial port, and the simulator's emulator speaks the same bytes on a pseudo-terminal,
@@ -8,54 +9,10 @@ their own range axis, so a consumer never guesses the geometry.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Protocol
 
-import numpy as np
-
 from app.errors import AppError
-
-
-@dataclass(frozen=True, slots=True)
-class RangeAxis:
-    """Ranges of a frame's bins: ``r[k] = start_m + k·bin_m`` for k in 0..bins−1."""
-
-    start_m: float
-    bin_m: float
-    bins: int
-
-    @property
-    def end_m(self) -> float:
-        return self.start_m + (self.bins - 1) * self.bin_m
-
-    def ranges_m(self) -> np.ndarray:
-        return self.start_m + self.bin_m * np.arange(self.bins)
-
-    def bin_of(self, range_m: float) -> float:
-        """Fractional bin index of ``range_m``."""
-        return (range_m - self.start_m) / self.bin_m
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class RadarFrame:
-    """One radar frame: complex baseband ``I + jQ`` per bin (the X4 sends Q negated: only the phase sign)."""
-
-    t_s: float  # loop time the frame was measured (the driver: received minus the sweep's half)
-    frame_counter: int
-    axis: RangeAxis
-    baseband: np.ndarray  # complex64, shape (axis.bins,)
-
-    @staticmethod
-    def from_floats(t_s: float, frame_counter: int, axis: RangeAxis, values: np.ndarray) -> RadarFrame:
-        """From the DataFloat values of downconversion 1: the I block, then the Q block."""
-        if values.size != 2 * axis.bins:
-            raise ValueError(f"a {axis.bins}-bin baseband frame has {2 * axis.bins} floats, got {values.size}")
-        baseband = (values[: axis.bins] + 1j * values[axis.bins :]).astype(np.complex64)
-        return RadarFrame(t_s, frame_counter, axis, baseband)
-
-    def amplitude(self) -> np.ndarray:
-        """|I + jQ| per bin (thesis §4.2.2)."""
-        return np.abs(self.baseband)
+from app.messages import RadarFrame, RangeAxis
 
 
 class Radar(Protocol):

@@ -29,20 +29,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from app.clock import Clock, LoopClock
+from app.messages import RadarFrame, RangeAxis
+from app.queues import LatestQueue
 from app.sensors import x4m03_commands as cmd
-from app.sensors.radar import (
-    RadarCommandError,
-    RadarDisconnected,
-    RadarError,
-    RadarFrame,
-    RadarNotReady,
-    RadarTimeout,
-    RangeAxis,
-)
+from app.sensors.radar import RadarCommandError, RadarDisconnected, RadarError, RadarNotReady, RadarTimeout
 from app.sensors.x4m03_codec import Ack, DataFloat, ErrorReply, Message, Pong, Reply, SystemMessage, encode_packet
 from app.sensors.x4m03_commands import X4Param
 from app.sensors.x4m03_frame_area import BASEBAND_BIN_M, axis_from_frame_area
-from app.sensors.x4m03_link import LatestQueue, SerialLink
+from app.sensors.x4m03_link import SerialLink
 from app.sensors.x4m03_parser import ParserStats, X4M03Parser
 from app.settings import RadarSettings
 
@@ -93,7 +87,7 @@ class X4M03Radar:
         self._parser = X4M03Parser()
         self.stats.parser = self._parser.stats
         self._link: SerialLink | None = None
-        self._queue: LatestQueue[RadarFrame] = LatestQueue(settings.queue_size)  # binds to the loop on first use
+        self._queue: LatestQueue[RadarFrame] = LatestQueue(settings.queue_size)
         self._pending: tuple[asyncio.Future[Message], Expect] | None = None
         self._lock = asyncio.Lock()
         self._lost: asyncio.Event | None = None

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from app.sensors.radar import RangeAxis
+from app.messages import RangeAxis
 
 C_MPS = 3.0e8  # the firmware's c (it uses 1.5e8 for c/2)
 SAMPLE_RATE_HZ = 23.328e9

@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 import threading
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from typing import TypeVar
 
 import serial
 
@@ -20,30 +20,6 @@ from app.sensors.x4m03_codec import Message
 from app.sensors.x4m03_parser import X4M03Parser
 
 T = TypeVar("T")
-
-
-class LatestQueue(Generic[T]):
-    """Bounded, latest-wins: a put on a full queue drops the oldest item and counts it (loop thread only)."""
-
-    def __init__(self, maxsize: int) -> None:
-        self._queue: asyncio.Queue[T] = asyncio.Queue(maxsize)
-        self.dropped = 0
-
-    def put(self, item: T) -> None:
-        if self._queue.full():
-            self._queue.get_nowait()
-            self.dropped += 1
-        self._queue.put_nowait(item)
-
-    async def get(self) -> T:
-        return await self._queue.get()
-
-    def qsize(self) -> int:
-        return self._queue.qsize()
-
-    def clear(self) -> None:
-        while not self._queue.empty():
-            self._queue.get_nowait()
 
 
 class SerialLink:

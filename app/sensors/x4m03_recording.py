@@ -30,7 +30,7 @@ from typing import IO, Any
 import numpy as np
 
 from app.errors import AppError
-from app.sensors.radar import RadarFrame, RangeAxis
+from app.messages import RadarFrame, RangeAxis
 from app.sensors.x4m03_frame_area import quantise_frame_area
 
 MAGIC = b"SEAPICK-X4REC 1\n"

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from app.estimators.radar_altitude import RadarAltitudeEstimator
-from app.sensors.radar import RadarFrame, RangeAxis
+from app.messages import RadarFrame, RangeAxis
 from app.settings import RadarAltitudeSettings
 
 ROOT = Path(__file__).resolve().parents[2]

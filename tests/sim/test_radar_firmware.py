@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.sensors.radar import RangeAxis
+from app.messages import RangeAxis
 from app.sensors.x4m03_codec import DataFloat
 from app.sensors.x4m03_parser import X4M03Parser
 from sim.radar_firmware import FirmwareConfig, FirmwareFaults, X4M03Firmware

@@ -11,7 +11,7 @@ from app.estimators.radar_altitude import (
     RadarAltitudeEstimator,
     calibrate_background,
 )
-from app.sensors.radar import RadarFrame, RangeAxis
+from app.messages import RadarFrame, RangeAxis
 from app.sensors.x4m03_frame_area import quantise_frame_area
 from app.settings import RadarAltitudeSettings
 

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from app.sensors.camera import CameraError, ExposureControls, LatestSlot, ThreadedCamera
+from app.sensors.camera import CameraError, ExposureControls, ThreadedCamera
 from app.sensors.camera_v4l2 import open_v4l2_camera
 from app.settings import CameraSettings
 
@@ -40,44 +40,6 @@ class FastGrabber:
 
     def close(self) -> None:
         self.closed = True
-
-
-def test_slot_hands_over_only_the_newest_item_and_counts_the_rest_dropped() -> None:
-    slot: LatestSlot[int] = LatestSlot()
-    assert slot.take() is None
-    for i in range(3):
-        slot.put(i)
-    assert slot.take() == 2
-    assert slot.take() is None
-    assert (slot.put_count, slot.dropped) == (3, 2)
-
-
-def test_slot_never_hands_a_consumer_an_item_older_than_the_newest_put() -> None:
-    slot: LatestSlot[int] = LatestSlot()
-    stop = threading.Event()
-
-    def produce() -> None:
-        i = 0
-        while not stop.is_set():
-            slot.put(i)
-            i += 1
-
-    producer = threading.Thread(target=produce)
-    producer.start()
-    try:
-        taken = []
-        while len(taken) < 50:
-            time.sleep(0.0002)  # a slow consumer
-            newest_before = slot.put_count - 1  # the newest item already put
-            item = slot.take()
-            if item is not None:
-                assert item >= newest_before
-                taken.append(item)
-    finally:
-        stop.set()
-        producer.join()
-    assert taken == sorted(set(taken))  # each item once, in order
-    assert slot.dropped > 0
 
 
 async def test_capture_thread_hands_over_the_newest_frame_to_a_slow_consumer() -> None:
@@ -123,6 +85,14 @@ async def test_a_failing_device_surfaces_as_camera_error() -> None:
                 await camera.next_frame()
                 await asyncio.sleep(0.001)
     assert err.value.device == "fake"
+
+
+async def test_a_consumer_waiting_for_a_frame_is_woken_by_the_failure() -> None:
+    camera = ThreadedCamera(FastGrabber(period_s=0.05, fail_after=0), clock=time.monotonic)
+    async with camera:
+        with pytest.raises(CameraError) as err:
+            await asyncio.wait_for(camera.next_frame(), 5.0)  # waits: the grabber fails before its first frame
+    assert isinstance(err.value.__cause__, OSError)
 
 
 async def test_a_missing_v4l2_device_is_a_camera_error_naming_it() -> None:

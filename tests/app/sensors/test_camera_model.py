@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.sensors.camera_model import CameraModel
+from app.messages import CameraModel
 from app.settings import CameraSettings
 
 DIST = (-0.21, 0.06, 0.0012, -0.0008, -0.01)

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from app.errors import ConfigError
-from app.sensors.radar import RadarCommandError, RadarDisconnected, RadarFrame, RadarTimeout
+from app.messages import RadarFrame
+from app.sensors.radar import RadarCommandError, RadarDisconnected, RadarTimeout
 from app.sensors.x4m03_commands import X4Param
 from app.sensors.x4m03_driver import X4M03Radar
 from app.settings import RadarSettings, validate_section

@@ -7,7 +7,7 @@ import struct
 import numpy as np
 import pytest
 
-from app.sensors.radar import RadarFrame, RangeAxis
+from app.messages import RadarFrame, RangeAxis
 from app.sensors.x4m03_frame_area import quantise_frame_area
 from app.sensors.x4m03_recording import THESIS_AXIS, RecordingError, RecordingWriter, read_recording
 
