@@ -223,7 +223,10 @@ class MissionRunner:
         try:
             if spec.control != "offboard" and not spec.manual and not spec.abort:
                 await self.boundary.leave_offboard(f"{previous} → {name}")
-            for action in spec.entry:
+            entry = spec.entry
+            if spec.control == "offboard" and not self.boundary.owns_offboard and "start_offboard" not in entry:
+                entry = ("start_offboard", *entry)  # e.g. resumed after a handback: take offboard first
+            for action in entry:
                 try:
                     await ACTIONS[action].fn(self)
                 except CommandRefused as e:
