@@ -32,6 +32,7 @@ from app.eventlog import EventLog
 from app.messages import Autopilot
 from app.missions.estimates import MissionModel
 from app.missions.pickup import FixChecks, PickupEstimates
+from app.missions.pickup_feeds import PickupFeeds
 from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
 from app.missions.table import SUCCESS, MissionTable, load_mission
 from app.offboard.boundary import BoundaryParams, VehicleBoundary
@@ -192,15 +193,18 @@ async def fly_mission(
     clock: Clock,
     events: EventLog,
     on_start: Callable[[MissionRunner], None] | None = None,
-    sensors: Sequence[Callable[[MissionModel], Coroutine[Any, Any, None]]] = (),
+    sensors: Sequence[Callable[[PickupFeeds], Coroutine[Any, Any, None]]] = (),
 ) -> Flight:
     """Run one mission on a connected vehicle; always ends with a safe exit.
 
     The first SIGINT/SIGTERM asks the mission to ABORT; a second one cancels the run, and the safe exit
     (zero velocity, then HOLD, if we still own offboard) runs on the way out — shielded, bounded.
     ``on_start(runner)`` is called once the runner exists (fault injection, the ground station).
+    ``sensors`` produce into the pickup's queues (``PickupFeeds``): the camera and radar tasks, or the
+    simulator's in-process sensors.
     """
     boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
+    feeds = PickupFeeds()
     if on_start is not None:
         on_start(runner)
     loop = asyncio.get_running_loop()
@@ -224,9 +228,14 @@ async def fly_mission(
         async with asyncio.TaskGroup() as tg:
             streams = tg.create_task(vehicle.run(), name="vehicle.telemetry")
             loop_task = tg.create_task(setpoints.run(), name="offboard.setpoints")
-            sensor_tasks = [tg.create_task(feed(runner.mission), name=f"sensors.{i}") for i, feed in enumerate(sensors)]
+            sensor_tasks: list[asyncio.Task[None]] = []
             if isinstance(runner.mission, PickupEstimates):
                 vehicle.add_sample_listener(runner.mission.on_vehicle_sample)
+                sensor_tasks += [
+                    tg.create_task(feeds.consume_frames(runner.mission), name="estimator.frames"),
+                    tg.create_task(feeds.consume_heights(runner.mission), name="estimator.heights"),
+                ]
+                sensor_tasks += [tg.create_task(s(feeds), name=f"sensors.{i}") for i, s in enumerate(sensors)]
             try:
                 await vehicle.wait_ready(settings.connection.ready_timeout_s)
                 events.write(clock.now_s(), "run", event="vehicle_ready", autopilot=vehicle.autopilot.value)
@@ -255,7 +264,7 @@ async def fly_mission(
         clock.now_s() - t_start_s,
         vehicle.autopilot.value,
         setpoints.sent,
-        runner.mission.summary(),
+        runner.mission.summary() | (feeds.summary() if isinstance(runner.mission, PickupEstimates) else {}),
         timing,
         safety,
     )

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from app.missions.pickup import PickupEstimates
+from app.missions.pickup_feeds import HeightSample, MarkerObservation, PickupFeeds
 from app.settings import CameraSettings
 from sim.camera_geometry import GeometricCamera
 from sim.inproc import InProcessVehicle
@@ -65,14 +65,12 @@ class PickupWorld:
         self.rng = np.random.default_rng(sc.seed + 1000)
         self.outcome = PickupOutcome()
         self._gripper_closed = False
-        # per camera frame, from the truth and the mission's snapshot: (t_s, height above the sea, down speed,
-        # fix age or None) — for checking descents from the vehicle's side
-        self.samples: list[tuple[float, float, float, float | None]] = []
+        # per camera frame, from the truth: (t_s, height above the sea, down speed) — for checking descents
+        # from the vehicle's side
+        self.samples: list[tuple[float, float, float]] = []
 
-    async def sensors(self, model: object) -> None:
-        """The camera and radar feeding ``model`` (a ``PickupEstimates``) until cancelled."""
-        if not isinstance(model, PickupEstimates):
-            raise TypeError("the pickup world feeds the pickup mission's estimates")
+    async def sensors(self, feeds: PickupFeeds) -> None:
+        """The camera and the radar, producing into the mission's queues until cancelled."""
         loop = asyncio.get_running_loop()
         pending: list[tuple[float, np.ndarray | None]] = []
         next_s = loop.time()
@@ -86,17 +84,15 @@ class PickupWorld:
             o = self.object.state(t_s)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
-            model.on_height(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m)))
-            self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], model.snapshot(t_s).fix_age_s))
+            feeds.heights.put(HeightSample(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m))))
+            self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2]))
             f = self.camera.frame(t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, o.pos_ned_m)
             # a caught object hangs in the gripper, out of the camera's sea
             pending.append((t_s, f.corners_px if f.visible and not self.outcome.caught else None))
             while pending and pending[0][0] + sc.latency_s <= t_s:
                 t_capture_s, corners = pending.pop(0)
-                if corners is None:
-                    model.on_frame(t_capture_s)
-                else:
-                    model.on_marker(t_capture_s, corners)
+                px = None if corners is None else tuple((float(u), float(v)) for u, v in corners)
+                feeds.frames.put(MarkerObservation(t_capture_s, px))
 
     def _judge_grab(self, t_s: float, truth: Any) -> None:
         if truth.gripper_closed and not self._gripper_closed:

@@ -93,6 +93,7 @@ class PickupEstimates:
         self.search_centre_ne_m = search_centre_ne_m  # where SEARCH searches; moves to the last estimate on a loss
         self.search: SearchPattern | None = None
         self.last_estimate_ne_m: tuple[float, float] | None = None
+        self.fix_times_s: deque[float] = deque(maxlen=100_000)  # capture times of the fused fixes
         self.grab_attempts = 0
         self.picked_up = False
 
@@ -152,6 +153,7 @@ class PickupEstimates:
             return self._reject(f"filter_{result.reason}")
         self.fixes += 1
         self._last_fix_t_s = t_s
+        self.fix_times_s.append(t_s)
         return True
 
     def _confirmed(self, obs: TargetObservation) -> bool:

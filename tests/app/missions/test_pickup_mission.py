@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 
 from app.clock import LoopClock
@@ -24,7 +25,11 @@ async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, **params
     world = PickupWorld(vehicle, scenario, settings.camera)
     table = load_mission("pickup")
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
-    flight = await fly_mission(vehicle, table, settings, LoopClock(), EventLog(None), sensors=[world.sensors])
+    runners = []
+    flight = await fly_mission(
+        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
+    )
+    world.model = runners[0].mission  # the mission's estimates, for checks against the truth
     return flight, world, table.params
 
 
@@ -42,13 +47,17 @@ async def test_calm_sea_pickup_goes_through_every_state_and_catches_the_object()
         "LIFT", "RETURN", "LAND_HOME", "DONE",
     ]  # fmt: skip
     assert flight.figures["picked_up"] and flight.figures["retries"] == 0
+    drops, puts = flight.figures["queue_drops"], flight.figures["queue_puts"]
+    assert puts["camera"] > 1000 and puts["radar"] > 1000 and drops == {"camera": 0, "radar": 0}
     assert out.caught and len(out.grabs) == 1
     assert out.touchdown_error_m <= world.scenario.capture_radius_m  # the goal is 0.10 m: not yet
     # from the vehicle's side: never descending onto the sea below the safety height without a fresh fix
     # (until the grab; LAND_HOME is the autopilot landing at home, not on the object)
-    grab_s = out.grabs[0]["t_s"]
-    for t_s, height_m, down_mps, fix_age_s in world.samples:
+    grab_s, fixes = out.grabs[0]["t_s"], np.array(world.model.fix_times_s)
+    for t_s, height_m, down_mps in world.samples:
         if t_s < grab_s and height_m < p.safety_height_m - 0.3 and down_mps > 0.2:
+            before = fixes[fixes <= t_s]
+            fix_age_s = t_s - before[-1] if len(before) else None
             assert fix_age_s is not None and fix_age_s <= p.fix_fresh_s + 0.5, (t_s, height_m, down_mps, fix_age_s)
 
 
