@@ -61,11 +61,16 @@ def marker_centre_normalized(corners_xy: FloatArray) -> FloatArray:
 
     ``corners_xy`` are the 4 undistorted normalised corners in order (ArUco: TL, TR, BR, BL).
     """
-    a, b, c, d = (np.append(p, 1.0) for p in corners_xy)
-    centre = np.cross(np.cross(a, c), np.cross(b, d))
-    if abs(centre[2]) < 1e-12:  # degenerate quadrilateral: fall back to the corner mean (eq. 4.3)
+    (ax, ay), (bx, by), (cx, cy), (dx, dy) = (tuple(map(float, p)) for p in corners_xy)
+    # lines through the diagonals, l = p × q in homogeneous coordinates (p = (x, y, 1)); centre = l1 × l2
+    l1 = (ay - cy, cx - ax, ax * cy - ay * cx)
+    l2 = (by - dy, dx - bx, bx * dy - by * dx)
+    w = l1[0] * l2[1] - l1[1] * l2[0]
+    if abs(w) < 1e-12:  # degenerate quadrilateral: fall back to the corner mean (eq. 4.3)
         return np.asarray(corners_xy.mean(axis=0), dtype=np.float64)
-    return np.asarray(centre[:2] / centre[2], dtype=np.float64)
+    x = l1[1] * l2[2] - l1[2] * l2[1]
+    y = l1[2] * l2[0] - l1[0] * l2[2]
+    return np.array([x / w, y / w], dtype=np.float64)
 
 
 @dataclass(frozen=True, slots=True)

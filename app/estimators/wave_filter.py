@@ -93,6 +93,7 @@ class WaveFilter(LinearTargetFilter):
             Qc[j + 1, j + 1] = 4.0 * damping * w**3 * var  # stationary E[ξ²] = q / (4 λ ω³)
         self._A, self._Qc = A, Qc
         self._discretise = lru_cache(maxsize=256)(self._discretise_axis)
+        self._fq_cache: dict[int, tuple[Array, Array]] = {}
 
     def _discretise_axis(self, dt_ms: int) -> tuple[Array, Array]:
         """Van Loan: expm([[−A, Qc], [0, Aᵀ]]·dt) gives F = expm(A dt) and Q = F·(upper-right block)."""
@@ -111,12 +112,22 @@ class WaveFilter(LinearTargetFilter):
         return self._discretise(max(0, round(dt_s * 1000.0)))
 
     def F(self, dt_s: float) -> Array:
-        f, _ = self._axis(dt_s)
-        return np.kron(np.eye(2), f)
+        return self._both_axes(max(0, round(dt_s * 1000.0)))[0]
 
     def Q(self, dt_s: float) -> Array:
-        _, q = self._axis(dt_s)
-        return np.kron(np.eye(2), q)
+        return self._both_axes(max(0, round(dt_s * 1000.0)))[1]
+
+    def _both_axes(self, dt_ms: int) -> tuple[Array, Array]:
+        """F and Q for north and east (block-diagonal), built once per millisecond step (read-only arrays)."""
+        cached = self._fq_cache.get(dt_ms)
+        if cached is None:
+            f, q = self._discretise(dt_ms)
+            F, Q = np.kron(np.eye(2), f), np.kron(np.eye(2), q)
+            F.flags.writeable = Q.flags.writeable = False
+            if len(self._fq_cache) > 4096:
+                self._fq_cache.clear()
+            cached = self._fq_cache[dt_ms] = (F, Q)
+        return cached
 
     @property
     def H(self) -> Array:

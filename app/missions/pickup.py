@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike
 from app.estimators.state_history import OutsideHistoryError, StateHistory
 from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
-from app.messages import AttitudeEuler, PositionVelocityNed, TargetObservation
+from app.messages import AttitudeEuler, PositionVelocityNed, TargetEstimate, TargetObservation
 from app.missions.estimates import Estimates, SensorHealth
 
 if TYPE_CHECKING:
@@ -94,6 +94,7 @@ class PickupEstimates:
         self.search: SearchPattern | None = None
         self.last_estimate_ne_m: tuple[float, float] | None = None
         self.fix_times_s: deque[float] = deque(maxlen=100_000)  # capture times of the fused fixes
+        self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
         self.picked_up = False
 
@@ -177,6 +178,16 @@ class PickupEstimates:
 
     # ---- MissionModel ---------------------------------------------------------------------------
 
+    def estimate(self, t_s: float) -> TargetEstimate | None:
+        """The filter's estimate at ``t_s`` (memoised until the next fix: guards, guidance and the summary
+        ask for the same instant several times per tick)."""
+        if not self.filter.initialised:
+            return None
+        key = (t_s, self.fixes, self.filter.t_s)
+        if self._estimate_cache is None or self._estimate_cache[0] != key:
+            self._estimate_cache = (key, self.filter.estimate(t_s))
+        return self._estimate_cache[1]
+
     def height_above_sea_m(self, t_s: float) -> float | None:
         h = self._height
         if h is None or self._radar_lost or t_s - h[0] > self.checks.height_max_age_s:
@@ -184,7 +195,7 @@ class PickupEstimates:
         return h[1]
 
     def snapshot(self, t_s: float) -> Estimates:
-        est = self.filter.estimate(t_s) if self.filter.initialised else None
+        est = self.estimate(t_s)
         sigma_m = None
         if est is not None:
             sigma_m = math.sqrt(max(np.linalg.eigvalsh(np.array(est.cov_ne_m2))))

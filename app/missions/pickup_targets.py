@@ -97,10 +97,10 @@ class ObjectTarget:
         return None if pv is None or h is None else pv.pos_ned_m[2] + h
 
     def _aim(self, t_s: float, lead_s: float, height_m: float) -> TargetState | None:
-        f = self.model.filter
-        if not f.initialised or f.estimate(t_s) is None:  # no lock, or the lock timed out
+        now = self.model.estimate(t_s)
+        if now is None:  # no lock, or the lock timed out
             return None
-        est = f.estimate(t_s + lead_s) or f.estimate(t_s)  # a prediction past the filter's timeout: now
+        est = (self.model.estimate(t_s + lead_s) or now) if lead_s > 0.0 else now  # past the timeout: now
         sea_down = self._sea_down_m(t_s)
         if est is None or sea_down is None:
             return None
