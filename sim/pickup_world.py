@@ -68,6 +68,7 @@ class PickupWorld:
         # per camera frame, from the truth: (t_s, height above the sea, down speed) — for checking descents
         # from the vehicle's side
         self.samples: list[tuple[float, float, float]] = []
+        self.camera_blind = False  # set from outside: the marker is not detected (glare, spray, occlusion)
 
     async def sensors(self, feeds: PickupFeeds) -> None:
         """The camera and the radar, producing into the mission's queues until cancelled."""
@@ -88,7 +89,8 @@ class PickupWorld:
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2]))
             f = self.camera.frame(t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, o.pos_ned_m)
             # a caught object hangs in the gripper, out of the camera's sea
-            pending.append((t_s, f.corners_px if f.visible and not self.outcome.caught else None))
+            seen = f.visible and not self.outcome.caught and not self.camera_blind
+            pending.append((t_s, f.corners_px if seen else None))
             while pending and pending[0][0] + sc.latency_s <= t_s:
                 t_capture_s, corners = pending.pop(0)
                 px = None if corners is None else tuple((float(u), float(v)) for u, v in corners)

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import numpy as np
@@ -83,3 +84,40 @@ async def test_after_the_last_retry_it_comes_home_empty_and_says_so():
     assert len(world.outcome.grabs) == p.grab_retries + 1 == 2 and not flight.figures["picked_up"]
     assert visited[-5:] == ["GRAB", "VERIFY", "RETURN", "LAND_HOME", "RETURNED_EMPTY"]  # no third grab
     assert not world.vehicle.truth().armed  # landed at home
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks_up():
+    """The marker vanishes for 3 s when the vehicle is 1.5 m over the sea in DESCEND: no more descending, back
+    to TRACK (climbing; after 2 s without a fix TRACK gives it up to SEARCH), and once it is seen again the
+    descent starts over."""
+    settings = Settings()
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
+    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
+    world = PickupWorld(vehicle, scenario, settings.camera)
+    runners, blind = [], {}
+
+    async def blind_low_in_descend():
+        while not runners or runners[0].state != "DESCEND" or world.samples[-1][1] > 1.5:  # noqa: ASYNC110
+            await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
+        blind["t_s"], blind["height_m"] = asyncio.get_running_loop().time(), world.samples[-1][1]
+        blind["before"] = len(runners[0].states_visited)
+        world.camera_blind = True
+        await asyncio.sleep(3.0)
+        blind["states"] = list(runners[0].states_visited)
+        blind["max_height_m"] = max(h for t, h, _ in world.samples if t >= blind["t_s"])
+        world.camera_blind = False
+
+    watcher = asyncio.create_task(blind_low_in_descend())
+    flight = await fly_mission(
+        vehicle, load_mission("pickup"), settings, LoopClock(), EventLog(None),
+        on_start=runners.append, sensors=[world.sensors],
+    )  # fmt: skip
+    watcher.cancel()
+    visited = flight.result.states_visited
+    print(blind, visited, world.outcome.grabs)
+    p = load_mission("pickup").params
+    assert blind["states"][blind["before"] - 1 : blind["before"] + 1] == ["DESCEND", "TRACK"]  # lost → TRACK
+    assert blind["max_height_m"] >= p.safety_height_m  # it climbed back to the safety height
+    assert visited[visited.index("TRACK") + 1 :].count("DESCEND") >= 2  # a second descent after re-acquiring
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
