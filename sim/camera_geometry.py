@@ -104,11 +104,13 @@ class GeometricCamera:
         marker_roll_rad: float = 0.0,
         marker_pitch_rad: float = 0.0,
         sea_down_under_radar_m: float | None = None,
+        marker_size_m: float | None = None,
     ) -> GeometricFrame:
         """Project the marker at its true pose from the vehicle's true pose at ``t_s``.
 
         ``sea_down_under_radar_m`` is the sea surface's down coordinate below the radar (waves); by default
-        the sea is flat at the marker's down coordinate.
+        the sea is flat at the marker's down coordinate. ``marker_size_m`` overrides the marker's edge (a nested
+        marker in the same place).
         """
         R_ned_frd = _euler_zyx(roll_rad, pitch_rad, yaw_rad)
         R_ned_cam = R_ned_frd @ self.R_frd_cam
@@ -119,7 +121,11 @@ class GeometricCamera:
         sea_down = centre[2] if sea_down_under_radar_m is None else sea_down_under_radar_m
 
         corners_ned = marker_corners_ned(
-            marker_centre_ned_m, self.marker_size_m, marker_yaw_rad, marker_roll_rad, marker_pitch_rad
+            marker_centre_ned_m,
+            self.marker_size_m if marker_size_m is None else marker_size_m,
+            marker_yaw_rad,
+            marker_roll_rad,
+            marker_pitch_rad,
         )
         points_ned = np.vstack([corners_ned, centre])
         points_cam = (points_ned - cam_ned) @ R_ned_cam  # R_cam_ned = R_ned_camᵀ, applied to rows

@@ -4,7 +4,9 @@ The in-process vehicle (``sim.inproc``) flies; this adds what the camera and the
 their own rates and with their latency, computed from the truth:
 
 - camera (geometric mode, ``sim.camera_geometry``): every ``frame_period_s`` the marker's corners projected
-  from the vehicle's true pose, handed to the mission ``latency_s`` later with the *capture* time;
+  from the vehicle's true pose, handed to the mission ``latency_s`` later with the *capture* time. With nested
+  markers (``DetectorSettings.nested_marker_ids``, sized as ``app.sensors.detect_marker`` expects) the largest
+  one wholly in the image and at least ``MIN_EDGE_PX`` across is what the detector reports, with its size;
 - radar: the radar's true height above the sea surface under the vehicle (waves included), plus noise.
 
 It also judges the pickup from the truth: where the gripper touched the water relative to the object when
@@ -23,10 +25,13 @@ from typing import Any
 import numpy as np
 
 from app.missions.pickup_feeds import HeightSample, MarkerObservation, PickupFeeds
-from app.settings import CameraSettings
+from app.sensors.detect_marker import SEARCH_FULL_MIN_PX, marker_sizes_m
+from app.settings import CameraSettings, DetectorSettings
 from sim.camera_geometry import GeometricCamera
 from sim.inproc import InProcessVehicle
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
+
+MIN_EDGE_PX = SEARCH_FULL_MIN_PX  # a smaller marker is not decoded
 
 
 @dataclass
@@ -54,7 +59,13 @@ class PickupOutcome:
 
 
 class PickupWorld:
-    def __init__(self, vehicle: InProcessVehicle, scenario: PickupScenario, camera: CameraSettings) -> None:
+    def __init__(
+        self,
+        vehicle: InProcessVehicle,
+        scenario: PickupScenario,
+        camera: CameraSettings,
+        detector: DetectorSettings | None = None,
+    ) -> None:
         self.vehicle = vehicle
         self.scenario = sc = scenario
         self.sea = SeaWorld(SeaConfig(sea_state=sc.sea_state, current_mps=sc.current_mps), seed=sc.seed)
@@ -63,6 +74,8 @@ class PickupWorld:
             camera, marker_size_m=sc.marker_size_m, pixel_noise_std_px=sc.pixel_noise_px, seed=sc.seed
         )
         self.rng = np.random.default_rng(sc.seed + 1000)
+        nested = detector.model_copy(update={"marker_size_m": sc.marker_size_m}) if detector is not None else None
+        self.marker_sizes_m = marker_sizes_m(nested) if nested is not None else (sc.marker_size_m,)
         self.outcome = PickupOutcome()
         self._gripper_closed = False
         # per camera frame, from the truth: (t_s, height above the sea, down speed) — for checking descents
@@ -73,7 +86,7 @@ class PickupWorld:
     async def sensors(self, feeds: PickupFeeds) -> None:
         """The camera and the radar, producing into the mission's queues until cancelled."""
         loop = asyncio.get_running_loop()
-        pending: list[tuple[float, np.ndarray | None]] = []
+        pending: list[tuple[float, tuple[np.ndarray, float] | None]] = []
         next_s = loop.time()
         sc = self.scenario
         while True:
@@ -87,14 +100,30 @@ class PickupWorld:
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
             feeds.heights.put(HeightSample(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m))))
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2]))
-            f = self.camera.frame(t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, o.pos_ned_m)
             # a caught object hangs in the gripper, out of the camera's sea
-            seen = f.visible and not self.outcome.caught and not self.camera_blind
-            pending.append((t_s, f.corners_px if seen else None))
+            seen = None if self.outcome.caught or self.camera_blind else self._largest_seen(t_s, truth, o.pos_ned_m)
+            pending.append((t_s, seen))
             while pending and pending[0][0] + sc.latency_s <= t_s:
-                t_capture_s, corners = pending.pop(0)
-                px = None if corners is None else tuple((float(u), float(v)) for u, v in corners)
-                feeds.frames.put(MarkerObservation(t_capture_s, px))
+                t_capture_s, found = pending.pop(0)
+                if found is None:
+                    feeds.frames.put(MarkerObservation(t_capture_s, None))
+                else:
+                    corners, size_m = found
+                    px = tuple((float(u), float(v)) for u, v in corners)
+                    feeds.frames.put(MarkerObservation(t_capture_s, px, size_m))
+
+    def _largest_seen(self, t_s: float, truth: Any, centre_ned_m: Any) -> tuple[np.ndarray, float] | None:
+        """The largest marker of the set wholly in the image and big enough to decode: (corners, its edge)."""
+        p = truth.pos_ned_m
+        for size_m in self.marker_sizes_m:
+            f = self.camera.frame(
+                t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, centre_ned_m, marker_size_m=size_m
+            )
+            c = f.corners_true_px
+            edge_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+            if f.visible and edge_px >= MIN_EDGE_PX:
+                return f.corners_px, size_m
+        return None
 
     def _judge_grab(self, t_s: float, truth: Any) -> None:
         if truth.gripper_closed and not self._gripper_closed:

@@ -125,9 +125,11 @@ async def start_descend(io: MissionIO) -> None:
 
 
 async def grab(io: MissionIO) -> None:
-    """Close the gripper (MAV_CMD_DO_GRIPPER) and keep the position meanwhile."""
-    _pickup(io).grab_attempts += 1
-    io.setpoints.engage(None, allow_below_min=True)
+    """Close the gripper (MAV_CMD_DO_GRIPPER), staying on the water over the object meanwhile (it moves on the
+    waves; without an estimate the loop holds where it is)."""
+    m = _pickup(io)
+    m.grab_attempts += 1
+    io.setpoints.engage(ObjectTarget(m, io.boundary.telemetry, 0.0), allow_below_min=True)
     await io.boundary.grip(True)
 
 

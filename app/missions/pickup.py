@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from app.estimators.sea_level import MeanSeaLevel, SeaLevelEstimate
 from app.estimators.state_history import OutsideHistoryError, StateHistory
 from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
@@ -77,6 +78,7 @@ class PickupEstimates:
         checks: FixChecks | None = None,
         history: StateHistory | None = None,
         search_centre_ne_m: tuple[float, float] = (0.0, 0.0),
+        sea_level: MeanSeaLevel | None = None,
     ) -> None:
         self.tri = triangulator
         self.filter = target_filter
@@ -84,7 +86,10 @@ class PickupEstimates:
         self.history = history if history is not None else StateHistory()
         self.rejected: Counter[str] = Counter()
         self.fixes = 0
-        self._height: tuple[float, float] | None = None  # (t_s, m)
+        self._height: tuple[float, float] | None = None  # (t_s, m), the newest
+        self._heights: deque[tuple[float, float]] = deque(maxlen=64)  # recent ones, for the height at capture time
+        self._heights_to_level: deque[tuple[float, float]] = deque(maxlen=64)  # waiting for the vehicle's altitude
+        self.sea_level = sea_level if sea_level is not None else MeanSeaLevel()
         self._radar_lost = False
         self._last_frame_t_s: float | None = None
         self._last_fix_t_s: float | None = None
@@ -116,9 +121,51 @@ class PickupEstimates:
             self.history.add_attitude(sample)
 
     def on_height(self, t_s: float, height_m: float) -> None:
-        if math.isfinite(height_m) and height_m > 0.0:
-            self._height = (t_s, height_m)
+        if math.isfinite(t_s) and math.isfinite(height_m) and height_m > 0.0:
+            if self._height is None or t_s > self._height[0]:
+                self._height = (t_s, height_m)
+                self._heights.append((t_s, height_m))
+                self._heights_to_level.append((t_s, height_m))
             self._radar_lost = False
+        self._update_sea_level()
+
+    def _update_sea_level(self) -> None:
+        """Heights become samples of the sea surface once the vehicle's altitude at their time is known."""
+        while self._heights_to_level:
+            t_s, h = self._heights_to_level[0]
+            try:
+                state = self.history.at(t_s)
+            except OutsideHistoryError as e:
+                if e.newest_s is None or t_s > e.newest_s:  # the vehicle's sample after it has not arrived yet
+                    return
+                self._heights_to_level.popleft()
+                continue
+            self._heights_to_level.popleft()
+            self.sea_level.update(t_s, state.pos_ned_m[2] + h)
+
+    def height_at(self, t_s: float) -> float | None:
+        """The radar height at ``t_s`` (interpolated between the two around it; the newest if ``t_s`` is later),
+        None when no height lies within ``height_max_age_s``."""
+        hs = self._heights
+        if not hs or self._radar_lost:
+            return None
+        max_age_s = self.checks.height_max_age_s
+        if t_s >= hs[-1][0]:
+            return hs[-1][1] if t_s - hs[-1][0] <= max_age_s else None
+        for (t0, h0), (t1, h1) in zip(reversed(hs), list(reversed(hs))[1:], strict=False):
+            # walking back: (t0, h0) is the later one
+            if t1 <= t_s <= t0:
+                if t0 - t1 > max_age_s:
+                    return None
+                f = (t_s - t1) / (t0 - t1) if t0 > t1 else 1.0
+                return h1 + f * (h0 - h1)
+        return hs[0][1] if hs[0][0] - t_s <= max_age_s else None
+
+    def mean_sea(self, t_s: float) -> SeaLevelEstimate | None:
+        """The mean sea surface (down, autopilot frame) and its drift; None without recent radar heights."""
+        if self.height_above_sea_m(t_s) is None:
+            return None
+        return self.sea_level.estimate(t_s)
 
     def on_radar_lost(self) -> None:
         self._radar_lost = True
@@ -127,21 +174,23 @@ class PickupEstimates:
         """A camera frame was processed (with or without a detection): the camera is alive."""
         self._last_frame_t_s = t_s
 
-    def on_marker(self, t_s: float, corners_px: ArrayLike) -> bool:
-        """One marker detection at capture time ``t_s``; True when it was fused into the filter."""
+    def on_marker(self, t_s: float, corners_px: ArrayLike, size_m: float | None = None) -> bool:
+        """One marker detection at capture time ``t_s``; True when it was fused into the filter. ``size_m`` is the
+        physical edge of the marker the detector found (a nested one near touchdown), by default the outer one."""
         self.on_frame(t_s)
         c = self.checks
-        if self._height is None or self._radar_lost or abs(t_s - self._height[0]) > c.height_max_age_s:
+        height_m = self.height_at(t_s)
+        if height_m is None:
             return self._reject("no_height")
         try:
             state = self.history.at(t_s)
         except OutsideHistoryError:
             return self._reject("no_state")
-        fix = self.tri.fix_marker(t_s, corners_px, state, self._height[1])
+        fix = self.tri.fix_marker(t_s, corners_px, state, height_m)
         if fix is None:
             return self._reject("no_ray")
         focal = math.sqrt(self.tri.camera.fx_px * self.tri.camera.fy_px)
-        ratio = apparent_size_ratio(corners_px, fix, focal, c.marker_size_m)
+        ratio = apparent_size_ratio(corners_px, fix, focal, size_m if size_m is not None else c.marker_size_m)
         if not abs(ratio - 1.0) <= c.size_tolerance:
             return self._reject("size")
         obs = fix.observation

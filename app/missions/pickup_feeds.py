@@ -24,6 +24,7 @@ class MarkerObservation:
 
     t_s: float  # capture time (loop clock)
     corners_px: tuple[tuple[float, float], ...] | None
+    size_m: float | None = None  # the physical edge of the marker seen (a nested one near touchdown); None: outer
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,7 +46,7 @@ class PickupFeeds:
             if obs.corners_px is None:
                 model.on_frame(obs.t_s)
             else:
-                model.on_marker(obs.t_s, obs.corners_px)
+                model.on_marker(obs.t_s, obs.corners_px, obs.size_m)
 
     async def consume_heights(self, model: PickupEstimates) -> None:
         while True:

@@ -49,6 +49,13 @@ def nested_size_ratio(bits: int) -> float:
     return 1.0 / (2.0 * (bits + 2))
 
 
+def marker_sizes_m(settings: DetectorSettings) -> tuple[float, ...]:
+    """The edges of the marker and its nested ones, largest first, m."""
+    bits = int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, settings.dictionary)).markerSize)
+    ratio = nested_size_ratio(bits)
+    return tuple(settings.marker_size_m * ratio**k for k in range(len(settings.nested_marker_ids) + 1))
+
+
 def _parameters(min_perimeter_rate: float, max_perimeter_rate: float) -> cv2.aruco.DetectorParameters:
     p = cv2.aruco.DetectorParameters()
     p.adaptiveThreshWinSizeMin = THRESHOLD_WINDOW_PX
@@ -76,10 +83,8 @@ class MarkerDetector(TrackingDetector):
         self._dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, settings.dictionary))
         bits = int(self._dictionary.markerSize)
         self._cells = bits + 2
-        ratio = nested_size_ratio(bits)
-        self._sizes_m = {settings.marker_id: settings.marker_size_m}
-        for k, nested_id in enumerate(settings.nested_marker_ids, start=1):
-            self._sizes_m[nested_id] = settings.marker_size_m * ratio**k
+        ids = (settings.marker_id, *settings.nested_marker_ids)
+        self._sizes_m = dict(zip(ids, marker_sizes_m(settings), strict=True))
         long_side = max(self.width_px, self.height_px)
         reduced_long = long_side * SEARCH_SCALE
         self._reduced = cv2.aruco.ArucoDetector(

@@ -14,16 +14,16 @@ from app.clock import LoopClock
 from app.eventlog import EventLog
 from app.main import fly_mission
 from app.missions.table import load_mission
-from app.settings import Settings
+from app.settings import load_settings
 from sim.inproc import InProcessVehicle
 from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
 
 
 async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, **params):
-    settings = Settings()
+    settings = load_settings()
     vehicle = InProcessVehicle(seed=scenario.seed, wind=wind)
-    world = PickupWorld(vehicle, scenario, settings.camera)
+    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
     table = load_mission("pickup")
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
     runners = []
@@ -32,6 +32,17 @@ async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, **params
     )
     world.model = runners[0].mission  # the mission's estimates, for checks against the truth
     return flight, world, table.params
+
+
+def assert_never_descends_low_without_a_fresh_fix(world: PickupWorld, p) -> None:
+    """From the vehicle's side: never descending onto the sea below the safety height without a fresh fix
+    (until the first grab; LAND_HOME is the autopilot landing at home, not on the object)."""
+    grab_s, fixes = world.outcome.grabs[0]["t_s"], np.array(world.model.fix_times_s)
+    for t_s, height_m, down_mps in world.samples:
+        if t_s < grab_s and height_m < p.safety_height_m - 0.3 and down_mps > 0.2:
+            before = fixes[fixes <= t_s]
+            fix_age_s = t_s - before[-1] if len(before) else None
+            assert fix_age_s is not None and fix_age_s <= p.fix_fresh_s + 0.5, (t_s, height_m, down_mps, fix_age_s)
 
 
 @pytest.mark.looptime(noop_cycles=2)
@@ -52,14 +63,7 @@ async def test_calm_sea_pickup_goes_through_every_state_and_catches_the_object()
     assert puts["camera"] > 1000 and puts["radar"] > 1000 and drops == {"camera": 0, "radar": 0}
     assert out.caught and len(out.grabs) == 1
     assert out.touchdown_error_m <= world.scenario.capture_radius_m  # the issue's goal is 0.10 m: not yet
-    # from the vehicle's side: never descending onto the sea below the safety height without a fresh fix
-    # (until the grab; LAND_HOME is the autopilot landing at home, not on the object)
-    grab_s, fixes = out.grabs[0]["t_s"], np.array(world.model.fix_times_s)
-    for t_s, height_m, down_mps in world.samples:
-        if t_s < grab_s and height_m < p.safety_height_m - 0.3 and down_mps > 0.2:
-            before = fixes[fixes <= t_s]
-            fix_age_s = t_s - before[-1] if len(before) else None
-            assert fix_age_s is not None and fix_age_s <= p.fix_fresh_s + 0.5, (t_s, height_m, down_mps, fix_age_s)
+    assert_never_descends_low_without_a_fresh_fix(world, p)
 
 
 @pytest.mark.looptime(noop_cycles=2)
@@ -91,10 +95,10 @@ async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks
     """The marker vanishes for 3 s when the vehicle is 1.5 m over the sea in DESCEND: no more descending, back
     to TRACK (climbing; after 2 s without a fix TRACK gives it up to SEARCH), and once it is seen again the
     descent starts over."""
-    settings = Settings()
+    settings = load_settings()
     scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
     vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
-    world = PickupWorld(vehicle, scenario, settings.camera)
+    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
     runners, blind = [], {}
 
     async def blind_low_in_descend():
@@ -121,3 +125,45 @@ async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks
     assert blind["max_height_m"] >= p.safety_height_m  # it climbed back to the safety height
     assert visited[visited.index("TRACK") + 1 :].count("DESCEND") >= 2  # a second descent after re-acquiring
     assert flight.result.outcome == "picked_up" and world.outcome.caught
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.looptime(noop_cycles=2)
+async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_waves(seed):
+    """The default scenario (sea state 2, current 0.3 m/s, wind 5 m/s): the object orbits ±0.25 m on the
+    waves and heaves; guidance follows it horizontally and holds a height above the *mean* sea."""
+    scenario = PickupScenario(seed=seed, sea_state=2, current_mps=0.3)
+    states: list[tuple[float, str]] = []
+
+    async def record_states(runners):
+        while True:
+            await asyncio.sleep(0.1)
+            if runners:
+                states.append((asyncio.get_running_loop().time(), runners[0].state))
+
+    settings = load_settings()
+    vehicle = InProcessVehicle(seed=seed, wind=WindConfig())
+    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
+    runners: list = []
+    recorder = asyncio.create_task(record_states(runners))
+    table = load_mission("pickup")
+    flight = await fly_mission(
+        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
+    )
+    recorder.cancel()
+    world.model = runners[0].mission
+    out = world.outcome
+    print(f"seed {seed}: {flight.result.outcome}, grabs {out.grabs}")
+    assert flight.result.outcome == "picked_up" and out.caught
+    assert all(g["error_m"] <= scenario.capture_radius_m for g in out.grabs)  # never off target on the water
+    assert_never_descends_low_without_a_fresh_fix(world, table.params)
+    # over the object (TRACK, DESCEND) the vehicle does not ride the swell: its vertical speed, less its 3 s
+    # running mean (descending, climbing back), stays small (riding the swell, it pumped ±1.5 m/s at the wave
+    # frequency). Measured, seeds 1–3: p95 0.45, 0.08, 0.40 m/s; riding the swell (the radar height under the
+    # vehicle as the reference): 1.69, 0.78 m/s and no pickup for seed 3
+    over = [t for t, st in states if st in ("TRACK", "DESCEND")]
+    vd = np.array([vd for t, _, vd in world.samples if over[0] <= t <= over[-1]])
+    n = int(3.0 / scenario.frame_period_s)
+    swell = vd[n - 1 :] - np.convolve(vd, np.ones(n) / n, mode="valid")
+    print(f"vertical speed over the object less its 3 s mean: p95 {np.percentile(np.abs(swell), 95):.2f} m/s")
+    assert len(swell) > 50 and np.percentile(np.abs(swell), 95) < 0.6

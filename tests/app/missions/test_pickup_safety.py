@@ -12,7 +12,7 @@ from app.eventlog import EventLog
 from app.main import fly_mission
 from app.messages import FlightMode
 from app.missions.table import load_mission
-from app.settings import Settings
+from app.settings import load_settings
 from sim.inproc import InProcessVehicle
 from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
@@ -36,9 +36,9 @@ OFFBOARD_STATES = [
 
 async def fly_until(state: str, then, scenario: PickupScenario, after_s: float = 0.3, events: EventLog | None = None):
     """Fly the calm pickup; once the mission has been in ``state`` for ``after_s``, call ``then(runner, vehicle)``."""
-    settings = Settings()
+    settings = load_settings()
     vehicle = InProcessVehicle(seed=scenario.seed, wind=WindConfig.off())
-    world = PickupWorld(vehicle, scenario, settings.camera)
+    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
     runners = []
     task = asyncio.create_task(
         fly_mission(

@@ -1,0 +1,64 @@
+"""The mean sea level under the vehicle, from radar heights and the vehicle's own altitude. Pure.
+
+Each radar height h at time t, added to the vehicle's down position then, is one sample of where the sea
+surface is (down, in the autopilot's local frame): z = p_d(t) + h(t). That surface heaves with the waves
+(±Hs/2) and, seen in the autopilot's frame, creeps with its altitude estimate's drift (a barometer, a
+vertical velocity bias). Guidance wants neither the waves nor the lag: it holds a height above the *mean*
+surface, and the vehicle must not chase every crest.
+
+A second-order tracking loop (a type-2 loop, like a PLL's: zero steady-state error to a constant drift)
+with natural frequency ω = 1/τ and damping ζ:
+
+    e = z − L;   L ← L + Δt·(Ṙ + 2ζω·e);   Ṙ ← Ṙ + Δt·ω²·e          (L the level, Ṙ its drift rate)
+
+Waves well above ω are attenuated by about 2ζω/ω_wave: τ = 5 s leaves ±4 cm of a ±0.25 m sea-state-2
+swell at 1.8 rad/s. The first sample starts the level; a gap longer than ``max_gap_s`` starts it over.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class SeaLevelEstimate:
+    t_s: float
+    down_m: float  # mean sea surface, NED down in the autopilot's local frame
+    rate_mps: float  # its drift, down positive
+
+
+class MeanSeaLevel:
+    def __init__(self, tau_s: float = 5.0, damping: float = 0.8, max_gap_s: float = 2.0) -> None:
+        if not tau_s > 0.0:
+            raise ValueError(f"tau_s must be > 0, not {tau_s}")
+        self.omega = 1.0 / tau_s
+        self.damping = damping
+        self.max_gap_s = max_gap_s
+        self._t_s: float | None = None
+        self._level = 0.0
+        self._rate = 0.0
+        self.samples = 0
+
+    def update(self, t_s: float, surface_down_m: float) -> None:
+        """One sample of the instantaneous surface (down, m) at ``t_s``; non-finite or older samples are ignored."""
+        if not (math.isfinite(t_s) and math.isfinite(surface_down_m)):
+            return
+        if self._t_s is None or t_s - self._t_s > self.max_gap_s:
+            self._t_s, self._level, self._rate = t_s, surface_down_m, 0.0
+            self.samples = 1
+            return
+        dt_s = t_s - self._t_s
+        if dt_s <= 0.0:
+            return
+        e = surface_down_m - self._level
+        self._level += dt_s * (self._rate + 2.0 * self.damping * self.omega * e)
+        self._rate += dt_s * self.omega**2 * e
+        self._t_s = t_s
+        self.samples += 1
+
+    def estimate(self, t_s: float) -> SeaLevelEstimate | None:
+        """The level extrapolated to ``t_s`` along its drift; None before the first sample or after a gap."""
+        if self._t_s is None or t_s - self._t_s > self.max_gap_s:
+            return None
+        return SeaLevelEstimate(t_s, self._level + self._rate * max(0.0, t_s - self._t_s), self._rate)

@@ -1,0 +1,53 @@
+"""The mean sea level under the vehicle: follows a drift without lag, leaves the swell out."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from app.estimators.sea_level import MeanSeaLevel
+
+
+def feed(level: MeanSeaLevel, surface, t_end_s: float, rate_hz: float = 15.0) -> None:
+    for t_s in np.arange(0.0, t_end_s, 1.0 / rate_hz):
+        level.update(float(t_s), surface(float(t_s)))
+
+
+def test_a_constant_drift_is_followed_without_steady_state_lag():
+    level = MeanSeaLevel(tau_s=5.0)
+    feed(level, lambda t: 0.3 + 0.09 * t, 120.0)  # an altitude estimate drifting 0.09 m/s (PX4 SIH's bias)
+    est = level.estimate(120.0)
+    assert est is not None
+    assert abs(est.down_m - (0.3 + 0.09 * 120.0)) < 0.01 and abs(est.rate_mps - 0.09) < 0.002
+
+
+def test_the_swell_is_attenuated_to_what_the_loop_bandwidth_allows():
+    level = MeanSeaLevel(tau_s=5.0, damping=0.8)
+    a_m, w = 0.25, 1.8  # a sea-state-2 swell: ±0.25 m at 1.8 rad/s
+    seen = []
+    for t_s in np.arange(0.0, 200.0, 1.0 / 15.0):
+        level.update(float(t_s), 2.0 + a_m * math.sin(w * t_s))
+        if t_s > 60.0:
+            est = level.estimate(float(t_s))
+            assert est is not None
+            seen.append(est.down_m - 2.0)
+    residual = max(abs(v) for v in seen)
+    print(f"residual ±{residual:.3f} m of a ±{a_m} m swell")
+    assert residual <= a_m * 2.0 * 0.8 * (1.0 / 5.0) / w * 1.3  # ≈ 2ζω/ω_wave of the swell, with margin
+    assert residual > 0.0
+
+
+def test_bad_samples_change_nothing_and_a_gap_starts_over():
+    level = MeanSeaLevel(tau_s=5.0, max_gap_s=2.0)
+    assert level.estimate(0.0) is None
+    feed(level, lambda t: 1.0, 10.0)
+    before = level.estimate(10.0)
+    level.update(10.1, math.nan)
+    level.update(math.inf, 3.0)
+    level.update(5.0, 9.0)  # older than the newest: ignored
+    assert level.estimate(10.0) == before
+    assert level.estimate(13.0) is None  # nothing for longer than the gap
+    level.update(20.0, 4.0)
+    est = level.estimate(20.0)
+    assert est is not None and est.down_m == 4.0 and est.rate_mps == 0.0
