@@ -4,7 +4,9 @@ A blocking capture runs in its own thread and hands frames to the asyncio loop t
 queue (:class:`app.queues.LatestQueue`): when the consumer is slower than the camera, the older frame is dropped
 and counted, so the detector always gets the *newest* frame — never a stale buffered one (the thesis had to patch
 the oCam library for this, §4.2.3). Each frame is stamped with its capture time by a clock function the caller
-injects (mapped to the loop clock); this module reads no clock of its own.
+injects (mapped to the loop clock); this module reads no clock of its own. A grabber whose source stamps its own
+frames (a networked camera, :mod:`app.sensors.camera_socket`) implements ``grab_stamped`` instead: its stamp,
+frame counter and controls in effect are used as they come.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import asyncio
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, Self
+from typing import TYPE_CHECKING, Protocol, Self, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -92,6 +94,26 @@ class FrameGrabber(Protocol):
     def close(self) -> None: ...
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class StampedImage:
+    """A frame as a self-stamping source delivers it: capture time already on the loop clock, its own counter."""
+
+    image: Image
+    t_s: float  # capture time, loop clock
+    seq: int  # the source's frame counter
+    controls: ExposureControls  # what the source says was in effect
+
+
+@runtime_checkable
+class StampingGrabber(FrameGrabber, Protocol):
+    """A grabber whose source stamps each frame at capture (a networked camera); ``ThreadedCamera`` calls
+    ``grab_stamped`` instead of ``grab`` and needs no clock of its own."""
+
+    def grab_stamped(self) -> StampedImage:
+        """Block until the next frame; raise ``CameraError`` when the source fails."""
+        ...
+
+
 @dataclass
 class _CaptureState:
     stop: threading.Event = field(default_factory=threading.Event)
@@ -103,17 +125,20 @@ class ThreadedCamera:
 
     ``clock`` is called in the capture thread right after each grab and must return loop-clock seconds (the
     default event loop's ``loop.time`` does); ``latency_s`` is subtracted (exposure + readout before the grab
-    returns). Control changes are applied by the capture thread between grabs.
+    returns). A :class:`StampingGrabber` brings its own stamps: ``clock`` and ``latency_s`` are not used.
+    Control changes are applied by the capture thread between grabs.
     """
 
     def __init__(
         self,
         grabber: FrameGrabber,
-        clock: Callable[[], float],
+        clock: Callable[[], float] | None = None,
         *,
         controls: ExposureControls | None = None,
         latency_s: float = 0.0,
     ) -> None:
+        if clock is None and not isinstance(grabber, StampingGrabber):
+            raise ValueError(f"camera {grabber.name}: a grabber that does not stamp its frames needs a clock")
         self._grabber = grabber
         self._clock = clock
         self._latency_s = latency_s
@@ -179,6 +204,7 @@ class ThreadedCamera:
     def _run(self) -> None:
         seq = 0
         in_effect = self._controls
+        stamping = self._grabber if isinstance(self._grabber, StampingGrabber) else None
         try:
             while not self._state.stop.is_set():
                 with self._controls_lock:
@@ -186,7 +212,12 @@ class ThreadedCamera:
                 if pending is not None:
                     self._grabber.apply_controls(pending)
                     in_effect = pending
+                if stamping is not None:
+                    got = stamping.grab_stamped()
+                    self._frames.put(CameraFrame(t_s=got.t_s, seq=got.seq, image=got.image, controls=got.controls))
+                    continue
                 image = self._grabber.grab()
+                assert self._clock is not None  # checked in __init__
                 t_s = self._clock() - self._latency_s
                 self._frames.put(CameraFrame(t_s=t_s, seq=seq, image=image, controls=in_effect))
                 seq += 1
