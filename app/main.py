@@ -18,6 +18,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +33,7 @@ from app.eventlog import EventLog
 from app.messages import Autopilot
 from app.missions.estimates import MissionModel
 from app.missions.pickup import FixChecks, PickupEstimates
-from app.missions.pickup_feeds import PickupFeeds
+from app.missions.pickup_feeds import PickupFeeds, Producer, camera_producer, radar_producer, radar_task_for
 from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
 from app.missions.table import SUCCESS, MissionTable, load_mission
 from app.offboard.boundary import BoundaryParams, VehicleBoundary
@@ -40,6 +41,7 @@ from app.offboard.envelope import EnvelopeLimits
 from app.offboard.guidance import ConstantBearingParams
 from app.offboard.setpoint_loop import SetpointLoop
 from app.offboard.vehicle import Vehicle
+from app.report import render_report
 from app.settings import Settings, load_settings
 
 SIM_PILOT_PORT = 14580
@@ -70,6 +72,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "estimate, PX4 SIH as recorded (its drag and estimator errors), ArduCopter",
     )
     sim.add_argument(
+        "--sea-state", type=number(0, 5, "(WMO code)", int), default=2, help="pickup: the sea state (default 2)"
+    )
+    sim.add_argument("--object", choices=("marker",), default="marker", help="pickup: what floats (buoy: not yet)")
+    sim.add_argument(
         "--pilot-port",
         type=UDP_PORT,
         default=SIM_PILOT_PORT,
@@ -87,7 +93,22 @@ def free_udp_port() -> int:
         return int(s.getsockname()[1])
 
 
-def start_simulator(args: argparse.Namespace, run_dir: Path) -> tuple[subprocess.Popen[bytes], str]:
+@dataclass(frozen=True)
+class SimSensors:
+    """Where the simulator serves the pickup's camera and radar (a short path: Unix sockets allow 107 bytes)."""
+
+    camera: str  # unix:PATH
+    radar: str  # the pty's symlink
+
+    @classmethod
+    def make(cls) -> SimSensors:
+        d = Path(tempfile.mkdtemp(prefix="seapick-"))
+        return cls(f"unix:{d / 'camera.sock'}", str(d / "radar"))
+
+
+def start_simulator(
+    args: argparse.Namespace, run_dir: Path, sensors: SimSensors | None = None
+) -> tuple[subprocess.Popen[bytes], str]:
     port = free_udp_port()
     cmd = [
         sys.executable, "-m", "sim.autopilot",
@@ -103,6 +124,10 @@ def start_simulator(args: argparse.Namespace, run_dir: Path) -> tuple[subprocess
         cmd += ["--wind-mps", str(args.wind_mps)]
     if args.gust_mps is not None:
         cmd += ["--gust-mps", str(args.gust_mps)]
+    if sensors is not None:
+        cmd += ["--camera-socket", sensors.camera, "--radar-link", sensors.radar, "--sea-state", str(args.sea_state)]
+        if args.settings is not None:
+            cmd += ["--settings", str(args.settings)]
     log = (run_dir / "sim.log").open("wb")
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
     return proc, f"udpin://0.0.0.0:{port}"
@@ -204,7 +229,7 @@ async def fly_mission(
     simulator's in-process sensors.
     """
     boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
-    feeds = PickupFeeds()
+    feeds = PickupFeeds(model=runner.mission if isinstance(runner.mission, PickupEstimates) else None)
     if on_start is not None:
         on_start(runner)
     loop = asyncio.get_running_loop()
@@ -236,6 +261,7 @@ async def fly_mission(
                     tg.create_task(feeds.consume_heights(runner.mission), name="estimator.heights"),
                 ]
                 sensor_tasks += [tg.create_task(s(feeds), name=f"sensors.{i}") for i, s in enumerate(sensors)]
+                sensor_tasks.append(tg.create_task(trace_pickup(runner, clock, events), name="pickup.trace"))
             try:
                 await vehicle.wait_ready(settings.connection.ready_timeout_s)
                 events.write(clock.now_s(), "run", event="vehicle_ready", autopilot=vehicle.autopilot.value)
@@ -270,13 +296,65 @@ async def fly_mission(
     )
 
 
-async def connect_and_fly(url: str, table: MissionTable, settings: Settings, events: EventLog, run_dir: Path) -> Flight:
+TRACE_PERIOD_S = 0.2
+
+
+async def trace_pickup(runner: MissionRunner, clock: Clock, events: EventLog) -> None:
+    """5 Hz ``pickup`` records for the report: the vehicle, the estimate, the height above the sea, the fix."""
+    model = runner.mission
+    assert isinstance(model, PickupEstimates)
+    while True:
+        await clock.sleep(TRACE_PERIOD_S)
+        t_s = clock.now_s()
+        pv = runner.boundary.telemetry().pos_vel
+        if pv is None:
+            continue
+        snap = model.snapshot(t_s)
+        target = snap.target
+        events.write(
+            t_s,
+            "pickup",
+            state=runner.state,
+            vehicle_ne_m=[round(pv.pos_ned_m[0], 3), round(pv.pos_ned_m[1], 3)],
+            vehicle_down_m=round(pv.pos_ned_m[2], 3),
+            estimate_ne_m=None if target is None else [round(target.pos_ned_m[0], 3), round(target.pos_ned_m[1], 3)],
+            height_above_sea_m=None if snap.height_above_sea_m is None else round(snap.height_above_sea_m, 3),
+            fix_age_s=None if snap.fix_age_s is None else round(snap.fix_age_s, 3),
+        )
+
+
+async def connect_and_fly(
+    url: str,
+    table: MissionTable,
+    settings: Settings,
+    events: EventLog,
+    run_dir: Path,
+    sim_sensors: SimSensors | None = None,
+) -> Flight:
     from app.offboard.mavsdk_vehicle import MavsdkVehicle, route_mavsdk_log  # loads the native library
 
     route_mavsdk_log(run_dir / "mavsdk.log")
     clock = LoopClock()
+    sensors = pickup_sensors(settings, clock, sim_sensors) if model_name(table) == "pickup" else []
     async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
-        return await fly_mission(vehicle, table, settings, clock, events)
+        return await fly_mission(vehicle, table, settings, clock, events, sensors=sensors)
+
+
+def pickup_sensors(settings: Settings, clock: Clock, sim: SimSensors | None) -> list[Producer]:
+    """The pickup's camera and radar tasks: the simulator's (a socket, a pty) or the real ones from settings."""
+    from app.sensors.camera_socket import open_socket_camera
+    from app.sensors.camera_v4l2 import open_v4l2_camera
+    from app.sensors.detect import make_detector
+
+    detector = make_detector(settings.detector, settings.camera)
+    if sim is not None:
+        size = (settings.camera.width_px, settings.camera.height_px)
+        camera = camera_producer(lambda: open_socket_camera(sim.camera, expected_size=size), detector, clock)
+        return [camera, radar_producer(radar_task_for(settings, sim.radar))]
+    camera = camera_producer(
+        lambda: open_v4l2_camera(settings.camera, asyncio.get_running_loop().time), detector, clock
+    )  # opened on the loop; its capture thread may call loop.time()
+    return [camera, radar_producer(radar_task_for(settings, settings.radar.port))]
 
 
 def tracking_report(summary: dict[str, Any]) -> str:
@@ -289,6 +367,22 @@ def tracking_report(summary: dict[str, Any]) -> str:
         if p50 is not None and p95 is not None:
             lines.append(f"  {label:<10} {p50:7.4f}  {p95:7.4f}")
     return "\n".join(lines)
+
+
+def pickup_truth(state_log: Path, summary: dict[str, Any]) -> dict[str, Any]:
+    """The simulator's verdict on the pickup (its state log): the grabs, the touchdown error, time to pickup."""
+    from sim.state_log import read_state_log  # only with --sim: the simulator's own log
+
+    grabs = [r for r in read_state_log(state_log) if r.get("event") == "grab"] if state_log.exists() else []
+    caught = [g for g in grabs if g.get("caught")]
+    last = caught[-1] if caught else (grabs[-1] if grabs else None)
+    armed = [r["t_s"] for r in read_state_log(state_log) if r.get("event") == "armed" and r.get("armed")]
+    return {
+        "touchdown_error_m": None if last is None else round(last["error_m"], 4),
+        "time_to_pickup_s": round(caught[0]["t_s"] - armed[0], 2) if caught and armed else None,
+        "grabs": [{k: round(v, 4) if isinstance(v, float) else v for k, v in g.items() if k != "event"} for g in grabs],
+        "off_target_touchdowns": sum(1 for g in grabs if not g.get("caught") and not g.get("slipped")),
+    }
 
 
 def first_leaf(exc: BaseException) -> BaseException:
@@ -305,14 +399,6 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as e:
         print(f"seapick: invalid input: {e}", file=sys.stderr)
         return 2
-    if model_name(table) == "pickup":
-        # The camera and radar tasks are not composed here yet: without them the vehicle would search blind.
-        print(
-            f"seapick: mission {table.mission} needs the camera and radar tasks, which this program does not "
-            "start yet; it flies in process (tests/app/missions/test_pickup_mission.py)",
-            file=sys.stderr,
-        )
-        return 2
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")  # wall clock only for the folder name
     run_dir: Path = args.run_dir or Path("runs") / f"{table.mission}-{stamp}"
     try:
@@ -323,8 +409,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     sim_proc = None
     url = args.connect or settings.connection.url
+    pickup = model_name(table) == "pickup"
+    sim_sensors = SimSensors.make() if args.sim and pickup else None
     if args.sim:
-        sim_proc, url = start_simulator(args, run_dir)
+        sim_proc, url = start_simulator(args, run_dir, sim_sensors)
         print(f"seapick: simulator started (pilot: python -m sim.pilot --port {args.pilot_port} --mode POSCTL)")
     summary: dict[str, Any] = {
         "mission": table.mission,
@@ -338,7 +426,7 @@ def main(argv: list[str] | None = None) -> int:
         "started_utc": stamp,
     }
     try:
-        flight = asyncio.run(connect_and_fly(url, table, settings, events, run_dir))
+        flight = asyncio.run(connect_and_fly(url, table, settings, events, run_dir, sim_sensors))
         summary.update(
             outcome=flight.result.outcome,
             reason=flight.result.reason,
@@ -368,6 +456,13 @@ def main(argv: list[str] | None = None) -> int:
             except subprocess.TimeoutExpired:
                 sim_proc.kill()
     summary["event_counts"] = events.counts
+    if sim_proc is not None and pickup:
+        summary.update(pickup_truth(run_dir / "sim_state.jsonl", summary))
+    if pickup:
+        try:
+            summary["report"] = str(render_report(run_dir, title=f"{table.mission} seed {args.seed}"))
+        except Exception as e:  # a figure that failed must not cost the summary
+            summary["report_error"] = f"{type(e).__name__}: {e}"
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if summary.get("tracking_samples"):
         print(tracking_report(summary))

@@ -10,6 +10,12 @@ CLI::
     python -m sim.autopilot --udp 127.0.0.1:14540 [--pilot-port 14580] [--profile px4|px4-sih|ardupilot]
         [--seed N] [--wind-mps 5] [--gust-mps 1] [--wind-from-deg 240] [--no-wind]
         [--state-log FILE] [--home LAT,LON,ALT] [--param NAME=VALUE ...]
+        [--camera-socket unix:PATH --radar-link PATH [--sea-state N] [--current-mps V] [--object-ne N,E]
+         [--fail-first-grabs K] [--settings FILE]]    # the pickup's world: sea, object, camera, radar
+
+With ``--camera-socket`` or ``--radar-link`` the process also simulates the pickup's world
+(``sim.pickup_serve``): the sea and the floating object, the camera served on the socket, the X4M03 emulator
+on a pty at the link path, and the grab judged from the truth (``grab`` records in the state log).
 
 Embedded (tests)::
 
@@ -23,13 +29,17 @@ import argparse
 import math
 import signal
 import threading
+from pathlib import Path
 from types import FrameType
 
 from app.cli import OneLineParser, number, run_cli
+from app.settings import load_settings
 from sim.airframes import SIM_PROFILES
 from sim.autopilot_endpoint import SimAutopilot, SimConfig
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint
 from sim.estimator import ESTIMATORS
+from sim.pickup_serve import PickupServer, ServeConfig
+from sim.pickup_world import PickupScenario
 from sim.wind import WindConfig
 
 __all__ = ["SimAutopilot", "SimConfig", "config_from_args", "main"]
@@ -89,7 +99,25 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--state-log", default=None, help="JSON-lines state log file")
     ap.add_argument("--home", type=_home, default=None, help="LAT,LON,ALT (deg, deg, m AMSL)")
     ap.add_argument("--param", type=_param, action="append", default=[], help="NAME=VALUE parameter override")
+    world = ap.add_argument_group("the pickup's world (sim.pickup_serve)")
+    world.add_argument("--camera-socket", default=None, help="serve the camera here, e.g. unix:/tmp/cam.sock")
+    world.add_argument("--radar-link", default=None, help="serve the X4M03 emulator's pty at this symlink")
+    world.add_argument("--sea-state", type=number(0, 5, "(WMO code)", int), default=2, help="WMO sea state")
+    world.add_argument("--current-mps", type=number(0.0, 3.0, "m/s"), default=0.3, help="surface current")
+    world.add_argument("--object-ne", type=_pair, default=(40.0, 20.0), help="N,E: the object's start, m")
+    world.add_argument("--fail-first-grabs", type=number(0, 100, "", int), default=0, help="grabs that slip")
+    world.add_argument("--settings", type=Path, default=None, help="the camera and detector (the app's settings)")
     return ap.parse_args(argv)
+
+
+def _pair(text: str) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not N,E in metres") from None
+    if not (math.isfinite(a) and math.isfinite(b) and abs(a) <= 10_000 and abs(b) <= 10_000):
+        raise argparse.ArgumentTypeError(f"{text!r}: N and E must be finite, within ±10 km")
+    return a, b
 
 
 def config_from_args(args: argparse.Namespace) -> SimConfig:
@@ -120,9 +148,29 @@ def config_from_args(args: argparse.Namespace) -> SimConfig:
     )
 
 
+def pickup_server(sim: SimAutopilot, args: argparse.Namespace) -> PickupServer | None:
+    if args.camera_socket is None and args.radar_link is None:
+        return None
+    settings = load_settings(args.settings)
+    scenario = PickupScenario(
+        seed=args.seed,
+        sea_state=args.sea_state,
+        current_mps=args.current_mps,
+        object_start_ne_m=args.object_ne,
+        marker_size_m=settings.detector.marker_size_m,
+        fail_first_grabs=args.fail_first_grabs,
+    )
+    config = ServeConfig(scenario, args.camera_socket, args.radar_link)
+    return PickupServer(sim, config, settings.camera, settings.detector)
+
+
 def main(argv: list[str] | None = None) -> int:
-    config = config_from_args(_parse_args(argv))
+    args = _parse_args(argv)
+    config = config_from_args(args)
     sim = SimAutopilot(config)  # a port in use or an unwritable state log: one line via run_cli
+    world = pickup_server(sim, args)
+    if world is not None:
+        world.start()
     stop = threading.Event()
 
     def _on_signal(signum: int, frame: FrameType | None) -> None:
@@ -137,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
         sim.run(stop)
     finally:
         sim.stop()
+        if world is not None:
+            world.close()
     return 0
 
 

@@ -91,6 +91,7 @@ class SimAutopilot:
         self._next_truth_log_s = 0.0
         self._truth: Truth | None = None
         self._jobs: queue.SimpleQueue[Callable[[FlightStack], None]] = queue.SimpleQueue()
+        self._observers: list[Callable[[Truth], None]] = []
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._log(
@@ -100,6 +101,7 @@ class SimAutopilot:
             target=f"{c.target[0]}:{c.target[1]}",
             pilot_port=self.pilot_address[1] if self.pilot_address else 0,
             home=[c.origin.lat_deg, c.origin.lon_deg, c.origin.alt_m],
+            boot_monotonic_s=round(self._t0, 6),  # t_s + this = CLOCK_MONOTONIC (the app's loop clock)
         )
         self._log("mode", mode=self.stack.mode.flight_mode.value, autopilot_mode=self.stack.mode.label, reason="boot")
 
@@ -117,6 +119,15 @@ class SimAutopilot:
     def truth(self) -> Truth | None:
         """The latest truth snapshot (safe to call from any thread)."""
         return self._truth
+
+    def add_observer(self, observer: Callable[[Truth], None]) -> None:
+        """Call ``observer(truth)`` in the endpoint's thread after every physics tick (the simulated world: the
+        sea, the object, the sensors that need the vehicle). Add observers before ``start()``/``run()``."""
+        self._observers.append(observer)
+
+    def log(self, event: str, t_s: float | None = None, **fields: object) -> None:
+        """A record in the state log (from the endpoint's thread: an observer)."""
+        self._log(event, t_s, **fields)
 
     def submit(self, job: Callable[[FlightStack], None]) -> None:
         """Run ``job(stack)`` in the endpoint's thread at its next tick (e.g. to inject a failure)."""
@@ -168,6 +179,8 @@ class SimAutopilot:
             self._jobs.get_nowait()(self.stack)
         self.stack.step(t_s)
         self._truth = self.stack.truth()
+        for observer in self._observers:
+            observer(self._truth)
         if t_s >= self._next_heartbeat_s:
             self._send_heartbeats()  # 1 Hz and never sooner, like PX4's const-rate HEARTBEAT stream
         if self._pilot_heartbeat_now:

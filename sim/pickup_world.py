@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from app.missions.pickup import RadarCalibrator
 from app.missions.pickup_feeds import HeightSample, MarkerObservation, PickupFeeds
 from app.sensors.detect_marker import SEARCH_FULL_MIN_PX, marker_sizes_m
 from app.settings import CameraSettings, DetectorSettings
@@ -45,6 +46,8 @@ class PickupScenario:
     latency_s: float = 0.06
     pixel_noise_px: float = 0.5
     radar_noise_m: float = 0.02
+    radar_range_m: float = 5.0  # the radar's last range (settings.radar.frame_area_end_m)
+    radar_fps_hz: float = 10.0
     capture_radius_m: float = 0.25
     gentle_mps: float = 1.0
     fail_first_grabs: int = 0  # these many grabs miss whatever the touchdown (a gripper that slipped)
@@ -78,13 +81,27 @@ class PickupWorld:
         self.marker_sizes_m = marker_sizes_m(nested) if nested is not None else (sc.marker_size_m,)
         self.outcome = PickupOutcome()
         self._gripper_closed = False
-        # per camera frame, from the truth: (t_s, height above the sea, down speed) — for checking descents
-        # from the vehicle's side
-        self.samples: list[tuple[float, float, float]] = []
+        # per camera frame, from the truth: (t_s, height above the sea, down speed, the sea surface's down speed
+        # under the vehicle) — for checking descents from the vehicle's side
+        self.samples: list[tuple[float, float, float, float]] = []
+        self.calibrations = 0
         self.camera_blind = False  # set from outside: the marker is not detected (glare, spray, occlusion)
+
+    async def calibrate_radar(self, n_frames: int) -> None:
+        """The radar's background capture (``n_frames`` at ``radar_fps_hz``): it fails while the sea is in range."""
+        loop = asyncio.get_running_loop()
+        sc = self.scenario
+        for _ in range(n_frames):
+            await asyncio.sleep(1.0 / sc.radar_fps_hz)
+            p = self.vehicle.truth().pos_ned_m
+            height_m = -float(self.sea.surface_elevation_m(loop.time(), p[0], p[1])) - p[2]
+            if height_m <= sc.radar_range_m:
+                raise RuntimeError(f"an echo at {height_m:.1f} m: the sea is in range")
+        self.calibrations += 1
 
     async def sensors(self, feeds: PickupFeeds) -> None:
         """The camera and the radar, producing into the mission's queues until cancelled."""
+        feeds.set_radar_calibrator(RadarCalibrator(self.scenario.radar_range_m, self.calibrate_radar))
         loop = asyncio.get_running_loop()
         pending: list[tuple[float, tuple[np.ndarray, float] | None]] = []
         next_s = loop.time()
@@ -99,7 +116,8 @@ class PickupWorld:
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
             feeds.heights.put(HeightSample(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m))))
-            self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2]))
+            sea_wd = float(self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])[2])
+            self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
             # a caught object hangs in the gripper, out of the camera's sea
             seen = None if self.outcome.caught or self.camera_blind else self._largest_seen(t_s, truth, o.pos_ned_m)
             pending.append((t_s, seen))
@@ -127,23 +145,22 @@ class PickupWorld:
 
     def _judge_grab(self, t_s: float, truth: Any) -> None:
         if truth.gripper_closed and not self._gripper_closed:
-            o = self.object.state(t_s)
-            err = math.hypot(truth.pos_ned_m[0] - o.pos_ned_m[0], truth.pos_ned_m[1] - o.pos_ned_m[1])
-            height = -float(self.sea.surface_elevation_m(t_s, *truth.pos_ned_m[:2])) - truth.pos_ned_m[2]
-            speed = abs(truth.vel_ned_mps[2])
-            sc = self.scenario
-            slipped = len(self.outcome.grabs) < sc.fail_first_grabs
-            caught = err <= sc.capture_radius_m and speed <= sc.gentle_mps and height < 0.5 and not slipped
-            self.outcome.grabs.append(
-                {
-                    "t_s": t_s,
-                    "error_m": err,
-                    "height_m": height,
-                    "speed_mps": speed,
-                    "caught": caught,
-                    "slipped": slipped,
-                }
-            )
-            self.outcome.touchdown_error_m, self.outcome.touchdown_speed_mps = err, speed
-            self.outcome.caught = self.outcome.caught or caught
+            judge_grab(self.outcome, self.scenario, self.object, t_s, truth)
         self._gripper_closed = truth.gripper_closed
+
+
+def judge_grab(
+    outcome: PickupOutcome, sc: PickupScenario, obj: FloatingObject, t_s: float, truth: Any
+) -> dict[str, Any]:
+    """The gripper just closed at ``t_s``: was the object caught? Recorded in ``outcome``; the record returned."""
+    o = obj.state(t_s)
+    err = math.hypot(truth.pos_ned_m[0] - o.pos_ned_m[0], truth.pos_ned_m[1] - o.pos_ned_m[1])
+    height = -float(obj.sea.surface_elevation_m(t_s, *truth.pos_ned_m[:2])) - truth.pos_ned_m[2]
+    speed = abs(truth.vel_ned_mps[2])
+    slipped = len(outcome.grabs) < sc.fail_first_grabs
+    caught = err <= sc.capture_radius_m and speed <= sc.gentle_mps and height < 0.5 and not slipped
+    grab = {"t_s": t_s, "error_m": err, "height_m": height, "speed_mps": speed, "caught": caught, "slipped": slipped}
+    outcome.grabs.append(grab)
+    outcome.touchdown_error_m, outcome.touchdown_speed_mps = err, speed
+    outcome.caught = outcome.caught or caught
+    return grab

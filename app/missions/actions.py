@@ -8,6 +8,7 @@ actions as one cancellable task: a takeover or an abort cancels them at their ne
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -87,6 +88,42 @@ def _pickup(io: MissionIO) -> PickupEstimates:
     if not isinstance(io.mission, PickupEstimates):
         raise TypeError(f"this action needs the pickup mission, not {type(io.mission).__name__}")
     return io.mission
+
+
+async def calibrate_radar(io: MissionIO) -> None:
+    """Thesis §4.2.2: climb until the sea is out of the radar's range, capture the background map there; if it
+    fails (an echo: the sea still in range), try ``calibrate_climb_m`` higher, ``calibrate_attempts`` heights in
+    all. Without a map the radar task keeps its adaptive clutter map: the mission goes on either way."""
+    m, p = _pickup(io), io.params
+    cal = m.radar_calibrator
+    pv = io.boundary.telemetry().pos_vel
+    if cal is None or pv is None:
+        m.radar_calibration = "skipped: no radar task to calibrate" if cal is None else "skipped: no position"
+        return
+    n, e = pv.pos_ned_m[0], pv.pos_ned_m[1]
+    home_down = (io.boundary.telemetry().home_ned_m or (0.0, 0.0, 0.0))[2]
+    reasons = []
+    for attempt in range(p.calibrate_attempts):
+        height_m = max(p.takeoff_altitude_m, cal.max_range_m + p.calibrate_margin_m) + attempt * p.calibrate_climb_m
+        io.setpoints.engage(FixedPoint("calibrate_radar", (n, e, home_down - height_m)))
+        await _reach_height(io, height_m - p.altitude_tolerance_m)
+        try:
+            await cal.capture(p.calibrate_frames)
+        except Exception as exc:  # the radar task says why (sea in range, too few frames, port gone)
+            reasons.append(f"{height_m:g} m: {exc}")
+            continue
+        m.radar_calibration = f"ok at {height_m:g} m"
+        return
+    m.radar_calibration = "failed: " + "; ".join(reasons)
+
+
+async def _reach_height(io: MissionIO, height_m: float) -> None:
+    """Until the vehicle is ``height_m`` above home (telemetry polled; the state's timeout bounds the wait)."""
+    while True:
+        h = io.boundary.telemetry().height_above_home_m()
+        if h is not None and h >= height_m:
+            return
+        await asyncio.sleep(0.1)
 
 
 async def goto_search(io: MissionIO) -> None:
@@ -171,6 +208,7 @@ ACTIONS: dict[str, ActionSpec] = {
     "hold_position": ActionSpec(hold_position, ("offboard",)),
     "land": ActionSpec(land, ("autopilot",)),
     "stop_and_hold": ActionSpec(stop_and_hold, None),
+    "calibrate_radar": ActionSpec(calibrate_radar, ("offboard",), "pickup"),
     "goto_search": ActionSpec(goto_search, ("offboard",), "pickup"),
     "start_search": ActionSpec(start_search, ("offboard",), "pickup"),
     "start_approach": ActionSpec(start_approach, ("offboard",), "pickup"),

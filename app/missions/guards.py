@@ -177,6 +177,11 @@ def at_lift_altitude(ctx: GuardContext) -> bool:
     return h is not None and h >= ctx.params.lift_altitude_m - ctx.params.altitude_tolerance_m
 
 
+def radar_calibration_done(ctx: GuardContext) -> bool:
+    """CALIBRATE_RADAR is through: a background map, or given up (the adaptive clutter map carries on)."""
+    return ctx.estimates.progress.get("radar_calibration_done", 0.0) >= 1.0
+
+
 def above_home(ctx: GuardContext) -> bool:
     home = ctx.telemetry.home_ned_m
     d = None if home is None else _horizontal_m(ctx, home[0], home[1])
@@ -210,6 +215,7 @@ GUARDS: dict[str, Guard] = {
         disarmed_with_object,
         at_lift_altitude,
         above_home,
+        radar_calibration_done,
     )
 }
 LINK_GUARDS = ("abort_requested", "link_lost", "position_lost", "setpoints_failing")

@@ -39,6 +39,12 @@ class MissionParams(BaseModel):
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
 
     # ---- pickup (app/missions/pickup.yaml) ------------------------------------------------------------
+    calibrate_frames: int = Field(30, ge=5, le=500, description="radar frames in the background map, count")
+    calibrate_margin_m: float = Field(
+        2.0, ge=0.0, le=30.0, description="CALIBRATE_RADAR climbs this far above the radar's last range, m"
+    )
+    calibrate_attempts: int = Field(3, ge=1, le=10, description="heights tried for the background map, count")
+    calibrate_climb_m: float = Field(3.0, ge=0.5, le=30.0, description="each further attempt this much higher, m")
     search_start_ne_m: Pair = Field((40.0, 20.0), description="centre of the search pattern, NE of home, m")
     search_altitude_m: float = Field(10.0, ge=3.0, le=60.0, description="search height above home, m")
     search_speed_mps: float = Field(2.0, ge=0.2, le=10.0, description="speed along the search pattern, m/s")

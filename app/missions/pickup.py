@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +42,16 @@ from app.missions.estimates import Estimates, SensorHealth
 
 if TYPE_CHECKING:
     from app.missions.pickup_targets import SearchPattern
+
+
+@dataclass(frozen=True, slots=True)
+class RadarCalibrator:
+    """How the mission calibrates the radar (the radar task's ``capture_background``, or the simulator's):
+    ``capture(n)`` takes the background from the next ``n`` frames and raises (with the reason) when the sea is
+    still in range or the frames do not come; ``max_range_m`` is the radar's last range."""
+
+    max_range_m: float
+    capture: Callable[[int], Awaitable[object]]
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +113,8 @@ class PickupEstimates:
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
         self.picked_up = False
+        self.radar_calibrator: RadarCalibrator | None = None  # registered by the radar task when there is one
+        self.radar_calibration: str | None = None  # None while pending; "ok", "skipped: …", "failed: …"
 
     def footprint_m(self, height_m: float) -> float:
         """The camera footprint's narrower side on the sea from ``height_m`` (nadir view), m."""
@@ -261,6 +274,7 @@ class PickupEstimates:
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
             "grab_attempts": float(self.grab_attempts),
             "picked_up": 1.0 if self.picked_up else 0.0,
+            "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
         }
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,
@@ -284,4 +298,5 @@ class PickupEstimates:
             "retries": max(0, self.grab_attempts - 1),
             "fixes": self.fixes,
             "fixes_rejected": dict(self.rejected),
+            "radar_calibration": self.radar_calibration,
         }

@@ -9,11 +9,19 @@ items, never the newest, and every loss is counted for the run's summary.
 
 from __future__ import annotations
 
+import asyncio
+from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any
 
-from app.missions.pickup import PickupEstimates
+from app.clock import Clock
+from app.missions.pickup import PickupEstimates, RadarCalibrator
 from app.queues import LatestQueue
+from app.sensors.camera import CameraError, CameraSource
+from app.sensors.detect import Detector
+from app.sensors.radar_task import RadarTask
+from app.sensors.x4m03_driver import X4M03Radar
+from app.settings import Settings
 
 QUEUE_SIZE = 4
 
@@ -36,9 +44,15 @@ class HeightSample:
 
 
 class PickupFeeds:
-    def __init__(self, maxsize: int = QUEUE_SIZE) -> None:
+    def __init__(self, maxsize: int = QUEUE_SIZE, model: PickupEstimates | None = None) -> None:
         self.frames: LatestQueue[MarkerObservation] = LatestQueue(maxsize)
         self.heights: LatestQueue[HeightSample] = LatestQueue(maxsize)
+        self.model = model
+
+    def set_radar_calibrator(self, calibrator: RadarCalibrator) -> None:
+        """The radar producer offers its background capture to the mission's CALIBRATE_RADAR."""
+        if self.model is not None:
+            self.model.radar_calibrator = calibrator
 
     async def consume_frames(self, model: PickupEstimates) -> None:
         while True:
@@ -61,3 +75,70 @@ class PickupFeeds:
             "queue_drops": {"camera": self.frames.dropped, "radar": self.heights.dropped},
             "queue_puts": {"camera": self.frames.put_count, "radar": self.heights.put_count},
         }
+
+
+Producer = Callable[[PickupFeeds], Coroutine[Any, Any, None]]
+CAMERA_OPEN_TIMEOUT_S = 15.0  # a networked camera (the simulator's) may come up after the app
+
+
+def camera_producer(
+    open_camera: Callable[[], CameraSource],
+    detector: Detector,
+    clock: Clock,
+    open_timeout_s: float = CAMERA_OPEN_TIMEOUT_S,
+) -> Producer:
+    """The camera task: frames → the detector (in a worker thread, never on the loop) → ``feeds.frames``.
+
+    Opening is retried for ``open_timeout_s``; after that, and for a camera that fails later, the
+    ``CameraError`` ends the task (the mission sees the camera's frames age: a guard input).
+    """
+
+    async def produce(feeds: PickupFeeds) -> None:
+        deadline_s = clock.now_s() + open_timeout_s
+        while True:
+            camera = open_camera()
+            try:
+                await camera.__aenter__()
+                frame = await camera.next_frame()
+                break
+            except CameraError:
+                await camera.__aexit__(None, None, None)
+                if clock.now_s() >= deadline_s:
+                    raise
+                await clock.sleep(0.5)
+        try:
+            while True:
+                det = await asyncio.to_thread(detector.detect, frame.image, frame.t_s)
+                if det is None or not det.corners_px:
+                    feeds.frames.put(MarkerObservation(frame.t_s, None))
+                else:
+                    feeds.frames.put(MarkerObservation(frame.t_s, det.corners_px, det.size_m))
+                frame = await camera.next_frame()
+        finally:
+            await camera.__aexit__(None, None, None)
+
+    return produce
+
+
+def radar_producer(make_task: Callable[[PickupFeeds], RadarTask]) -> Producer:
+    """The radar task (driver → altitude estimator): heights and losses into ``feeds.heights``."""
+
+    async def produce(feeds: PickupFeeds) -> None:
+        await make_task(feeds).run()
+
+    return produce
+
+
+def radar_task_for(settings: Settings, port: str) -> Callable[[PickupFeeds], RadarTask]:
+    def make(feeds: PickupFeeds) -> RadarTask:
+        radar = X4M03Radar(settings.radar.model_copy(update={"port": port}))
+        task = RadarTask(
+            radar,
+            settings.radar_altitude,
+            on_height=lambda t_s, h_m: feeds.heights.put(HeightSample(t_s, h_m)),
+            on_lost=lambda t_s, why: feeds.heights.put(HeightSample(t_s, None)),
+        )
+        feeds.set_radar_calibrator(RadarCalibrator(settings.radar.frame_area_end_m, task.capture_background))
+        return task
+
+    return make

@@ -266,5 +266,6 @@ class SetpointLoop:
         return {
             "setpoint_interval_p50_s": percentile(xs, 0.50),
             "setpoint_interval_p95_s": percentile(xs, 0.95),
+            "setpoint_interval_p99_s": percentile(xs, 0.99),
             "setpoint_interval_max_s": xs[-1] if xs else None,
         }

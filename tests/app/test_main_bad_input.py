@@ -22,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[2]
         (["--mission", "circle.yaml", "--sim", "--connect", "udpin://0.0.0.0:1"], "exclude each other"),
         (["--mission", "circle.yaml", "--settings", "/etc/hostname"], "top level must be a mapping"),
         ([], "the following arguments are required: --mission"),
-        (["--mission", "pickup.yaml", "--sim"], "needs the camera and radar tasks"),  # not composed yet (issue 11)
+        (["--mission", "pickup.yaml", "--sim", "--sea-state", "9"], "argument --sea-state: 9 is outside 0..5"),
+        (["--mission", "pickup.yaml", "--sim", "--object", "boat"], "argument --object: invalid choice: 'boat'"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(args, expected):

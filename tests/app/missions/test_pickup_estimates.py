@@ -161,3 +161,30 @@ async def test_right_sized_glints_that_jump_around_never_start_a_lock():
     print(f"rejected {dict(est.rejected)}")
     assert est.fixes == 0 and est.rejected["confirming"] >= 60
     assert est.snapshot(asyncio.get_running_loop().time()).target is None
+
+
+def test_the_mean_sea_leaves_the_swell_out_and_follows_the_altitude_estimates_drift():
+    """Radar heights under a vehicle hovering over a ±0.25 m swell (1.8 rad/s), its altitude estimate drifting
+    0.05 m/s down: the instantaneous surface (altitude + radar) swings ±0.25 m; the mean sea guidance holds a
+    height above swings a few centimetres and keeps up with the drift."""
+    from app.messages import AttitudeEuler, PositionVelocityNed
+
+    m = model()
+    swing, mean_err = [], []
+    for k in range(int(90.0 * 50)):
+        t_s = k / 50.0
+        drift_m = 0.05 * t_s  # the estimate's down position creeps; the radar sees the same sea
+        m.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, -6.0 + drift_m), (0.0, 0.0, 0.05)))
+        m.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+        if k % 3 == 0:  # radar at ~17 Hz
+            sea_down_m = -0.25 * math.sin(1.8 * t_s)
+            m.on_height(t_s, sea_down_m - (-6.0))  # the true height: the estimate's drift is not the vehicle's
+            if t_s > 40.0:
+                est = m.mean_sea(t_s)
+                assert est is not None
+                swing.append(sea_down_m)  # what altitude + radar reads, less the drift
+                mean_err.append(est.down_m - drift_m)  # the mean sea in the drifting frame, less the drift
+    print(f"instantaneous ±{np.ptp(swing) / 2:.3f} m; mean sea ±{np.ptp(mean_err) / 2:.3f} m, |bias| "
+          f"{abs(np.mean(mean_err)):.3f} m")  # fmt: skip
+    assert np.ptp(swing) / 2 > 0.24
+    assert np.ptp(mean_err) / 2 < 0.06 and abs(np.mean(mean_err)) < 0.03
