@@ -71,6 +71,11 @@ async def hold_position(io: MissionIO) -> None:
     io.setpoints.engage(None)
 
 
+async def hold(io: MissionIO) -> None:
+    """The autopilot's HOLD (PX4 AUTO.LOITER, ArduCopter BRAKE); leaving offboard first sent zero velocity."""
+    await io.boundary.hold()
+
+
 async def land(io: MissionIO) -> None:
     await io.boundary.land()
 
@@ -207,6 +212,7 @@ ACTIONS: dict[str, ActionSpec] = {
     "start_circle": ActionSpec(start_circle, ("offboard",), "circle"),
     "hold_position": ActionSpec(hold_position, ("offboard",)),
     "land": ActionSpec(land, ("autopilot",)),
+    "hold": ActionSpec(hold, ("autopilot",)),
     "stop_and_hold": ActionSpec(stop_and_hold, None),
     "calibrate_radar": ActionSpec(calibrate_radar, ("offboard",), "pickup"),
     "goto_search": ActionSpec(goto_search, ("offboard",), "pickup"),

@@ -97,6 +97,7 @@ class MissionRunner:
         self.state = ""
         self._entry_t_s = 0.0
         self._taken_over_from: str | None = None
+        self._held_from: str | None = None  # the state a hold request left
         self._abort_requested = False
         self._abort_reason = ""
         self.start_given = True  # a ground station clears this and sets it on its start command
@@ -122,6 +123,33 @@ class MissionRunner:
         self.boundary.request_abort()
         if self._tg is not None and self._result is None and not self.table.states[self.state].abort:
             self._enter(self.table.abort_state, f"abort requested ({reason})")
+
+    def request(self, command: str) -> str | None:
+        """A ground station's request — ``hold``, ``resume`` or ``rtl`` — on the loop's thread; None when it is
+        carried out, else why not (nothing changes then). A pilot who has control, or an ABORT, wins."""
+        if self._tg is None or self._result is not None:
+            return "the mission is not running"
+        spec = self.table.states[self.state]
+        if self.pilot_has_control or spec.manual:
+            return "the pilot has control"
+        if spec.abort or self._abort_requested:
+            return "the mission is aborting"
+        if command == "resume":
+            if self.state != self.table.requests.get("hold"):
+                return f"nothing to resume in {self.state}"
+            dst = spec.resume.get(self._held_from or "") or spec.resume_default or self.table.abort_state
+            self._enter(dst, f"resume requested (held in {self._held_from})")
+            return None
+        target = self.table.requests.get(command)  # type: ignore[call-overload]
+        if target is None:
+            return f"the mission {self.table.mission} has no {command!r} request"
+        if not spec.flying:
+            return f"not flying ({self.state})"
+        if self.state == target:
+            return f"already in {target}"
+        self._held_from = self.state
+        self._enter(target, f"{command} requested")
+        return None
 
     @property
     def pilot_has_control(self) -> bool:

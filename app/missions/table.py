@@ -10,7 +10,9 @@ A table has ``mission`` (name), ``initial`` (state), ``params`` (``MissionParams
     timeout_s / on_timeout                      required for every flying state and for MANUAL
     terminal:    completed | picked_up | aborted | failed | pilot   (the run's outcome; no transitions)
     manual: true                                the state the runner enters when the pilot takes over
-    resume: {STATE: STATE}, resume_default      (manual only) where to go when control is handed back
+    resume: {STATE: STATE}, resume_default      (manual, and the hold request's state) where to go when control is
+                                                handed back, or on a resume request
+  requests: {hold: STATE, rtl: STATE}           ground-station requests, honoured in every flying state
     abort: true                                 marks the ABORT state
 
 Errors name the YAML path, e.g. ``states.TRACK.transitions[1].when: unknown guard 'laps'``.
@@ -68,6 +70,9 @@ class MissionTable(_Model):
     initial: str
     params: MissionParams = MissionParams()
     states: dict[str, StateSpec]
+    # ground-station requests honoured in every flying state (the pilot and ABORT still win): hold → the state
+    # that holds (it resumes through its ``resume`` map), rtl → the state that brings the vehicle home
+    requests: dict[Literal["hold", "rtl"], str] = {}
 
     @property
     def manual_state(self) -> str:
@@ -130,6 +135,10 @@ def validate_table(table: MissionTable, source: str) -> None:
             fail(path, f"unknown state {name!r}; states: {', '.join(names)}")
 
     check_state_ref("initial", table.initial)
+    for request, target in table.requests.items():
+        check_state_ref(f"requests.{request}", target)
+        if not states[target].flying:
+            fail(f"requests.{request}", f"{target!r} does not fly: a request leads to a flying state")
     manuals = [n for n, s in states.items() if s.manual]
     aborts = [n for n, s in states.items() if s.abort]
     if len(aborts) != 1:
@@ -158,8 +167,8 @@ def validate_table(table: MissionTable, source: str) -> None:
             check_state_ref(f"{base}.resume", src)
             check_state_ref(f"{base}.resume.{src}", dst)
         check_state_ref(f"{base}.resume_default", s.resume_default)
-        if (s.resume or s.resume_default) and not s.manual:
-            fail(f"{base}.resume", "only the manual state resumes")
+        if (s.resume or s.resume_default) and not s.manual and name != table.requests.get("hold"):
+            fail(f"{base}.resume", "only the manual state and the hold request's state resume")
         if s.terminal is not None:
             if s.transitions or s.on_timeout:
                 fail(f"{base}.terminal", "a terminal state has no transitions or timeout")
@@ -199,6 +208,7 @@ def validate_table(table: MissionTable, source: str) -> None:
         nxt += list(s.resume.values()) + ([s.resume_default] if s.resume_default else [])
         if s.flying:
             nxt.append(manuals[0])
+            nxt += list(table.requests.values())
         todo.extend(n for n in nxt if n not in reached)
     unreachable = [n for n in names if n not in reached]
     if unreachable:

@@ -1,5 +1,6 @@
 """The pickup's safety, checked from the vehicle's side (what the in-process autopilot received): an abort in
-every flying state ends in a safe state, and a pilot's takeover in TRACK is obeyed and handed back."""
+every flying state ends in a safe state, a pilot's takeover in TRACK is obeyed and handed back, and a ground
+station's hold / resume / rtl requests are carried out (or refused with the reason, changing nothing)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from tests.app.missions.test_preemption import assert_zero_then_hold, mode_comma
 LOOPTIME = pytest.mark.looptime(noop_cycles=2)
 CALM = {"sea_state": 0, "current_mps": 0.1}
 OFFBOARD_STATES = [
+    "CALIBRATE_RADAR",
     "GOTO_SEARCH",
     "SEARCH",
     "APPROACH",
@@ -98,3 +100,92 @@ async def test_pilot_takeover_in_track_is_obeyed_then_handback_resumes_and_picks
     i = visited.index("MANUAL")
     assert visited[i - 1 : i + 2] == ["TRACK", "MANUAL", "TRACK"]
     assert flight.result.outcome == "picked_up"
+
+
+@LOOPTIME
+async def test_hold_request_in_track_stops_in_the_autopilots_hold_and_resume_goes_on_to_the_pickup():
+    scenario = PickupScenario(seed=2, **CALM)
+    held = {}
+
+    def hold(runner, vehicle):
+        held["answer"] = runner.request("hold")
+        held["t_s"] = asyncio.get_running_loop().time()
+
+        async def resume():
+            await asyncio.sleep(4.0)
+            held["mode"] = vehicle.truth().flight_mode
+            held["speed_mps"] = max(abs(v) for v in vehicle.truth().vel_ned_mps)
+            held["state"] = runner.state
+            held["sent_meanwhile"] = [s for s in setpoints(vehicle, held["t_s"] + 0.6) if any(s["vel_ned_mps"])]
+            held["resume_t_s"] = asyncio.get_running_loop().time()
+            held["resume"] = runner.request("resume")
+
+        asyncio.get_running_loop().create_task(resume())
+
+    flight, vehicle, t_s = await fly_until("TRACK", hold, scenario)
+    visited = flight.result.states_visited
+    print(held, visited)
+    assert held["answer"] is None and held["resume"] is None
+    assert held["state"] == "HOLD" and held["mode"] is FlightMode.HOLD and held["speed_mps"] < 0.2
+    assert held["sent_meanwhile"] == []  # after the zero-velocity stop, nothing that moves
+    assert_zero_then_hold(vehicle, t_s, until_s=held["resume_t_s"])  # leaving offboard: zero, then HOLD
+    i = visited.index("HOLD")
+    assert visited[i - 1 : i + 2] == ["TRACK", "HOLD", "TRACK"]
+    assert flight.result.outcome == "picked_up"
+
+
+@LOOPTIME
+async def test_rtl_request_in_search_flies_home_and_lands_without_the_object():
+    scenario = PickupScenario(seed=2, **CALM)
+    answers = []
+    flight, vehicle, _ = await fly_until("SEARCH", lambda r, v: answers.append(r.request("rtl")), scenario, 0.0)
+    visited = flight.result.states_visited
+    assert answers == [None]
+    assert visited[visited.index("SEARCH") + 1 :] == ["RETURN", "LAND_HOME", "RETURNED_EMPTY"], visited
+    truth = vehicle.truth()
+    assert not truth.armed and abs(truth.pos_ned_m[0]) < 1.5 and abs(truth.pos_ned_m[1]) < 1.5  # landed at home
+
+
+@LOOPTIME
+async def test_requests_that_do_not_fit_the_state_are_refused_with_the_reason_and_change_nothing():
+    scenario = PickupScenario(seed=2, **CALM)
+    answers = {}
+
+    def ask(runner, vehicle):
+        answers["resume"] = runner.request("resume")
+        answers["land_now"] = runner.request("land_now")
+        answers["state"] = runner.state
+        vehicle.pilot_set_mode(FlightMode.POSCTL)
+
+        async def while_the_pilot_flies():
+            await asyncio.sleep(1.0)
+            answers["hold_under_pilot"] = runner.request("hold")
+            answers["state_under_pilot"] = runner.state
+            vehicle.pilot_set_mode(FlightMode.OFFBOARD)
+
+        asyncio.get_running_loop().create_task(while_the_pilot_flies())
+
+    flight, _, _ = await fly_until("APPROACH", ask, scenario, 0.0)
+    print(answers)
+    assert answers["resume"] == "nothing to resume in APPROACH" and answers["state"] == "APPROACH"
+    assert answers["land_now"] == "the mission pickup has no 'land_now' request"
+    assert answers["hold_under_pilot"] == "the pilot has control" and answers["state_under_pilot"] == "MANUAL"
+    assert "HOLD" not in flight.result.states_visited and flight.result.outcome == "picked_up"
+
+
+@LOOPTIME
+async def test_abort_while_held_ends_in_hold_and_stays_there():
+    scenario = PickupScenario(seed=2, **CALM)
+
+    def hold_then_abort(runner, vehicle):
+        assert runner.request("hold") is None
+
+        async def abort():
+            await asyncio.sleep(2.0)
+            runner.request_abort("test")
+
+        asyncio.get_running_loop().create_task(abort())
+
+    flight, vehicle, _ = await fly_until("SEARCH", hold_then_abort, scenario)
+    assert flight.result.states_visited[-3:] == ["SEARCH", "HOLD", "ABORT"]
+    assert flight.result.outcome == "aborted" and vehicle.truth().flight_mode is FlightMode.HOLD

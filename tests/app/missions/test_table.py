@@ -114,3 +114,33 @@ def test_a_flying_state_without_a_link_guard_is_refused(tmp_path, guard):
 def test_abort_requested_must_lead_to_the_abort_state(tmp_path):
     e = broken(tmp_path, lambda t: t["states"]["TRACK"]["transitions"][0].update(to="LAND"))
     assert e.path == "states.TRACK.transitions[0].to" and "abort_requested must lead to the abort state" in e.message
+
+
+PICKUP = yaml.safe_load((MISSIONS_DIR / "pickup.yaml").read_text())
+
+
+def broken_pickup(tmp_path, mutate) -> MissionTableError:
+    t = copy.deepcopy(PICKUP)
+    mutate(t)
+    with pytest.raises(MissionTableError) as e:
+        load_mission(write(tmp_path, t))
+    return e.value
+
+
+def test_the_pickup_loads_with_its_requests():
+    t = load_mission("pickup")
+    assert t.requests == {"hold": "HOLD", "rtl": "RETURN"} and t.states["HOLD"].resume["TRACK"] == "TRACK"
+
+
+def test_a_request_to_an_unknown_or_grounded_state_is_refused(tmp_path):
+    e = broken_pickup(tmp_path, lambda t: t["requests"].update(hold="PARK"))
+    assert e.path == "requests.hold" and "unknown state 'PARK'" in e.message
+    e = broken_pickup(tmp_path, lambda t: t["requests"].update(rtl="DONE"))
+    assert e.path == "requests.rtl" and "does not fly" in e.message
+    e = broken_pickup(tmp_path, lambda t: t["requests"].update(land_now="LAND_HOME"))
+    assert "requests.land_now" in str(e)
+
+
+def test_only_the_manual_and_the_hold_state_resume(tmp_path):
+    e = broken_pickup(tmp_path, lambda t: t["states"]["TRACK"].update(resume={"SEARCH": "SEARCH"}))
+    assert e.path == "states.TRACK.resume" and "hold request's state" in e.message
