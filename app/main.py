@@ -28,6 +28,7 @@ from app.cli import OneLineParser, number, run_cli
 from app.clock import Clock, LoopClock
 from app.errors import AppError, ConfigError
 from app.estimators.factory import make_target_filter
+from app.estimators.sea_state import SEA_STATES
 from app.estimators.triangulation import SeaPlaneTriangulator
 from app.eventlog import EventLog
 from app.messages import Autopilot
@@ -204,6 +205,7 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
     checks = FixChecks(
         marker_size_m=p.marker_size_m,
         size_tolerance=p.size_tolerance,
+        height_uncertainty_m=SEA_STATES[p.sea_state].hs_m / 2.0,  # the sea under the radar vs under the object
         confirm_frames=p.confirm_frames,
         converged_sigma_m=p.converged_sigma_m,
     )

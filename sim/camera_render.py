@@ -175,7 +175,7 @@ class CameraRenderer:
             corners_px if in_view else None,
             (float(mean[0]), float(mean[1])),
             (float(centre_px[0]), float(centre_px[1])),
-            float(np.nanmean(edges)),
+            float(np.nanmean(edges)) if np.isfinite(edges).any() else math.nan,  # nothing projects: out of view
             in_view,
         )
 

@@ -24,10 +24,11 @@ from typing import Any
 
 import numpy as np
 
+from app.estimators.rotations import euler_zyx_to_matrix
 from app.missions.pickup import RadarCalibrator
 from app.missions.pickup_feeds import HeightSample, MarkerObservation, PickupFeeds
 from app.sensors.detect_marker import SEARCH_FULL_MIN_PX, marker_sizes_m
-from app.settings import CameraSettings, DetectorSettings
+from app.settings import Settings
 from sim.camera_geometry import GeometricCamera
 from sim.inproc import InProcessVehicle
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
@@ -47,6 +48,7 @@ class PickupScenario:
     pixel_noise_px: float = 0.5
     radar_noise_m: float = 0.02
     radar_range_m: float = 5.0  # the radar's last range (settings.radar.frame_area_end_m)
+    radar_min_range_m: float = 0.45  # … and its first (the frame area's start, the pulse's length)
     radar_fps_hz: float = 10.0
     capture_radius_m: float = 0.25
     gentle_mps: float = 1.0
@@ -62,23 +64,19 @@ class PickupOutcome:
 
 
 class PickupWorld:
-    def __init__(
-        self,
-        vehicle: InProcessVehicle,
-        scenario: PickupScenario,
-        camera: CameraSettings,
-        detector: DetectorSettings | None = None,
-    ) -> None:
+    def __init__(self, vehicle: InProcessVehicle, scenario: PickupScenario, settings: Settings) -> None:
+        """``settings``: the vehicle as the app describes it (camera, detector's marker set, radar lever arm) —
+        here they are also the truth."""
         self.vehicle = vehicle
         self.scenario = sc = scenario
         self.sea = SeaWorld(SeaConfig(sea_state=sc.sea_state, current_mps=sc.current_mps), seed=sc.seed)
         self.object = FloatingObject(self.sea, start_ne_m=sc.object_start_ne_m)
         self.camera = GeometricCamera(
-            camera, marker_size_m=sc.marker_size_m, pixel_noise_std_px=sc.pixel_noise_px, seed=sc.seed
+            settings.camera, marker_size_m=sc.marker_size_m, pixel_noise_std_px=sc.pixel_noise_px, seed=sc.seed
         )
+        self.radar_arm_frd_m = np.asarray(settings.radar.lever_arm_frd_m, dtype=np.float64)
         self.rng = np.random.default_rng(sc.seed + 1000)
-        nested = detector.model_copy(update={"marker_size_m": sc.marker_size_m}) if detector is not None else None
-        self.marker_sizes_m = marker_sizes_m(nested) if nested is not None else (sc.marker_size_m,)
+        self.marker_sizes_m = marker_sizes_m(settings.detector.model_copy(update={"marker_size_m": sc.marker_size_m}))
         self.outcome = PickupOutcome()
         self._gripper_closed = False
         # per camera frame, from the truth: (t_s, height above the sea, down speed, the sea surface's down speed
@@ -115,7 +113,12 @@ class PickupWorld:
             o = self.object.state(t_s)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
-            feeds.heights.put(HeightSample(t_s, sea_down - p[2] + float(self.rng.normal(0.0, sc.radar_noise_m))))
+            # the radar measures from its antenna, off the body origin by the lever arm
+            r_ned_body = euler_zyx_to_matrix(truth.roll_rad, truth.pitch_rad, truth.yaw_rad)
+            ant = np.asarray(p) + r_ned_body @ self.radar_arm_frd_m
+            radar_m = -float(self.sea.surface_elevation_m(t_s, ant[0], ant[1])) - ant[2]
+            if sc.radar_min_range_m <= radar_m <= sc.radar_range_m:  # outside its ranges the radar sees no sea
+                feeds.heights.put(HeightSample(t_s, radar_m + float(self.rng.normal(0.0, sc.radar_noise_m))))
             sea_wd = float(self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])[2])
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
             # a caught object hangs in the gripper, out of the camera's sea
@@ -156,7 +159,7 @@ def judge_grab(
     o = obj.state(t_s)
     err = math.hypot(truth.pos_ned_m[0] - o.pos_ned_m[0], truth.pos_ned_m[1] - o.pos_ned_m[1])
     height = -float(obj.sea.surface_elevation_m(t_s, *truth.pos_ned_m[:2])) - truth.pos_ned_m[2]
-    speed = abs(truth.vel_ned_mps[2])
+    speed = abs(float(truth.vel_ned_mps[2]))
     slipped = len(outcome.grabs) < sc.fail_first_grabs
     caught = err <= sc.capture_radius_m and speed <= sc.gentle_mps and height < 0.5 and not slipped
     grab = {"t_s": t_s, "error_m": err, "height_m": height, "speed_mps": speed, "caught": caught, "slipped": slipped}

@@ -57,6 +57,10 @@ class MeanSeaLevel:
         self._t_s = t_s
         self.samples += 1
 
+    def last(self) -> SeaLevelEstimate | None:
+        """The level as of the last sample, however old (None before the first)."""
+        return None if self._t_s is None else SeaLevelEstimate(self._t_s, self._level, self._rate)
+
     def estimate(self, t_s: float) -> SeaLevelEstimate | None:
         """The level extrapolated to ``t_s`` along its drift; None before the first sample or after a gap."""
         if self._t_s is None or t_s - self._t_s > self.max_gap_s:

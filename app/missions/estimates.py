@@ -34,6 +34,9 @@ class Estimates:
     fix_age_s: float | None = None  # since the last accepted observation
     converged_for_s: float | None = None  # how long the filter has counted as converged
     height_above_sea_m: float | None = None  # from the radar, not from home
+    # the vehicle over the mean sea (its altitude over the level the radar last tracked; valid for a few seconds
+    # after the radar stops — under its first range, near the water)
+    height_over_mean_sea_m: float | None = None
     sensors: SensorHealth = field(default_factory=SensorHealth)
     progress: Mapping[str, float] = field(default_factory=lambda: _EMPTY)  # mission-specific figures by name
 

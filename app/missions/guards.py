@@ -134,10 +134,13 @@ def target_lost(ctx: GuardContext) -> bool:
 
 
 def touchdown(ctx: GuardContext) -> bool:
-    """On the water: the radar reads the touchdown height, or the autopilot says landed."""
-    h = ctx.estimates.height_above_sea_m
+    """On the water: the radar reads the touchdown height, or the vehicle is that low over the mean sea (under the
+    radar's first range it reads nothing), or the autopilot says landed."""
+    e, limit_m = ctx.estimates, ctx.params.touchdown_height_m
     landed = ctx.telemetry.landed_state is not None and ctx.telemetry.landed_state.value is LandedState.ON_GROUND
-    return landed or (h is not None and h <= ctx.params.touchdown_height_m)
+    radar_low = e.height_above_sea_m is not None and e.height_above_sea_m <= limit_m
+    mean_low = e.height_over_mean_sea_m is not None and e.height_over_mean_sea_m <= limit_m
+    return landed or radar_low or mean_low
 
 
 def grab_settled(ctx: GuardContext) -> bool:

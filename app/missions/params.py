@@ -66,7 +66,9 @@ class MissionParams(BaseModel):
     )
     touchdown_height_m: float = Field(0.3, ge=0.05, le=2.0, description="radar height that counts as touchdown, m")
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
-    size_tolerance: float = Field(0.35, ge=0.05, le=1.0, description="apparent size within this of the expected")
+    size_tolerance: float = Field(
+        0.15, ge=0.02, le=1.0, description="apparent size within this of the expected (plus the waves' share)"
+    )
     confirm_frames: int = Field(3, ge=1, le=30, description="agreeing fixes before a new lock, count")
     verify_height_m: float = Field(
         1.5, ge=0.5, le=10.0, description="after the grab, climb this high above the sea and look for the object, m"

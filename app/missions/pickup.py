@@ -8,10 +8,14 @@ Inputs arrive from the sensor tasks, each stamped with the time it was *measured
 A detection becomes a fix only if it passes, in order (each rejection counted by reason):
 1. the vehicle state at the capture time is in the history, and a fresh radar height exists;
 2. the ray meets the sea (``SeaPlaneTriangulator``);
-3. **size**: the marker's apparent size matches its known physical size at that range,
-   √(area_px / area_expected) within ``1 ± size_tolerance`` where area_expected = (f·s/r)²·cos θ
-   (r the camera–object range along the ray, θ the ray's angle from the vertical). A 20 px printed glyph
-   seen from 10 m is 5× too small for a 0.3 m marker and never becomes a fix;
+3. **size**: the marker's apparent size matches its known physical size at that range: √(measured area /
+   expected area) within ``1 ± (size_tolerance + height_uncertainty_m / h)``, the expected area that of a
+   level square of its edge at the fix, on the undistorted image plane (``apparent_size_ratio``: lens
+   distortion and off-axis views do not bias it), h the camera's height. The range comes from the radar's
+   height over the sea *under the vehicle*, which differs from the sea under the object by up to the waves'
+   height — a relative error that grows as the vehicle comes down. From 10 m in sea state 2 (±0.25 m) a
+   detection must be within ±17.5 % of the marker's size: a same-ID print of 0.2 m (20 px, ratio 0.67–0.73
+   on rendered frames) is refused, the marker itself (0.93–1.0) is not;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
    must agree within ``confirm_radius_m``; only then is the filter started (with the newest of them).
    Once locked, the filter's own innovation gate judges every fix; when the lock times out, confirmation
@@ -37,7 +41,14 @@ from app.estimators.sea_level import MeanSeaLevel, SeaLevelEstimate
 from app.estimators.state_history import OutsideHistoryError, StateHistory
 from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
-from app.messages import AttitudeEuler, PositionVelocityNed, TargetEstimate, TargetObservation
+from app.messages import (
+    AttitudeEuler,
+    CameraModel,
+    PositionVelocityNed,
+    TargetEstimate,
+    TargetObservation,
+    VehicleStateNed,
+)
 from app.missions.estimates import Estimates, SensorHealth
 
 if TYPE_CHECKING:
@@ -57,7 +68,12 @@ class RadarCalibrator:
 @dataclass(frozen=True, slots=True)
 class FixChecks:
     marker_size_m: float = 0.30  # edge of the printed marker, m
-    size_tolerance: float = 0.35  # |√(area ratio) − 1| allowed
+    size_tolerance: float = 0.15  # |√(area ratio) − 1| allowed with an exact range …
+    height_uncertainty_m: float = 0.25  # … plus this over the camera's height (the waves: Hs/2)
+    altitude_uncertainty_m: float = 0.5  # a height from the altitude over the sea reference: this much worse
+    home_above_sea_m: float = 0.0  # before the radar has seen the sea: home (the deck) this far above it
+    sea_level_fresh_s: float = 3.0  # the tracked mean sea counts this long after the radar's last height
+    max_extrapolation_s: float = 0.1  # a frame newer than the newest vehicle sample: carried this far at its speed
     confirm_frames: int = 3  # agreeing fixes before a new lock
     confirm_window_s: float = 1.0
     confirm_radius_m: float = 0.5
@@ -65,18 +81,27 @@ class FixChecks:
     converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
 
 
-def polygon_area_px2(corners_px: ArrayLike) -> float:
-    """Shoelace area of the detected quadrilateral, px²."""
-    c = np.asarray(corners_px, dtype=np.float64).reshape(-1, 2)
+def polygon_area(corners: ArrayLike) -> float:
+    """Shoelace area of a quadrilateral (4×2)."""
+    c = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     x, y = c[:, 0], c[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
-def apparent_size_ratio(corners_px: ArrayLike, fix: SeaPlaneFix, focal_px: float, size_m: float) -> float:
-    """√(measured area / expected area) of a flat marker seen along ``fix``'s ray (1.0 = the right size)."""
-    range_m = fix.camera_height_m / max(math.cos(fix.off_vertical_rad), 1e-6)
-    expected = (focal_px * size_m / range_m) ** 2 * math.cos(fix.off_vertical_rad)
-    return math.sqrt(polygon_area_px2(corners_px) / expected) if expected > 0.0 else math.inf
+def apparent_size_ratio(corners_px: ArrayLike, fix: SeaPlaneFix, camera: CameraModel, size_m: float) -> float:
+    """√(measured area / expected area) of a flat, level marker seen along ``fix``'s ray (1.0 = the right size).
+
+    On the undistorted image plane (f = 1) a small patch of area A at range r, its normal at θ from the ray,
+    covers A·cos θ / r² of solid angle, and the image plane holds that as A·cos θ / (r² cos³ β), β the ray's
+    angle from the optical axis (with the axis vertical: (s/h)², whatever the off-nadir angle).
+    """
+    xy = camera.undistort_to_normalized(np.asarray(corners_px, dtype=np.float64).reshape(-1, 2))
+    cx, cy = xy.mean(axis=0)
+    cos_beta = 1.0 / math.sqrt(1.0 + cx * cx + cy * cy)
+    cos_theta = math.cos(fix.off_vertical_rad)
+    range_m = fix.camera_height_m / max(cos_theta, 1e-6)
+    expected = size_m**2 * cos_theta / (range_m**2 * cos_beta**3)
+    return math.sqrt(polygon_area(xy) / expected) if expected > 0.0 else math.inf
 
 
 class PickupEstimates:
@@ -156,7 +181,55 @@ class PickupEstimates:
             self._heights_to_level.popleft()
             self.sea_level.update(t_s, state.pos_ned_m[2] + h)
 
-    def height_at(self, t_s: float) -> float | None:
+    def height_at(self, t_s: float) -> tuple[float, float] | None:
+        """The height above the sea at ``t_s`` and how uncertain it is, m: the radar's when it has one, else the
+        vehicle's altitude over the sea reference (``sea_reference``: above the radar's range, e.g. searching at
+        10 m with a 5 m radar), with ``altitude_uncertainty_m`` more uncertainty. None without either."""
+        radar_m = self.radar_height_at(t_s)
+        if radar_m is not None:
+            return radar_m, self.checks.height_uncertainty_m
+        state = self.state_at(t_s)
+        if state is None:
+            return None
+        down_m = state.pos_ned_m[2]
+        c = self.checks
+        return self.sea_reference(t_s)[0] - down_m, c.height_uncertainty_m + c.altitude_uncertainty_m
+
+    def state_at(self, t_s: float) -> VehicleStateNed | None:
+        """The vehicle at ``t_s`` from the history; a little past its newest sample (a camera frame whose capture
+        came after the last telemetry sample arrived) carried at that sample's velocity, attitude held."""
+        try:
+            return self.history.at(t_s)
+        except OutsideHistoryError as e:
+            newest_s = e.newest_s
+            if newest_s is None or not 0.0 < t_s - newest_s <= self.checks.max_extrapolation_s:
+                return None
+        try:
+            s = self.history.at(newest_s)
+        except OutsideHistoryError:
+            return None
+        dt_s = t_s - newest_s
+        p, v = s.pos_ned_m, s.vel_ned_mps
+        return VehicleStateNed(t_s, (p[0] + v[0] * dt_s, p[1] + v[1] * dt_s, p[2] + v[2] * dt_s), v, s.q_ned_frd)
+
+    def height_over_mean_sea_m(self, t_s: float) -> float | None:
+        """The vehicle's altitude over the tracked mean sea, while that is fresh (``sea_level_fresh_s``)."""
+        last = self.sea_level.last()
+        state = self.state_at(t_s)
+        if last is None or state is None or t_s - last.t_s > self.checks.sea_level_fresh_s:
+            return None
+        return last.down_m + last.rate_mps * (t_s - last.t_s) - state.pos_ned_m[2]
+
+    def sea_reference(self, t_s: float) -> tuple[float, float]:
+        """Where the mean sea surface is (down, autopilot frame) and its drift: the tracked mean sea while radar
+        heights come, the last level it had when they stop, and before any: ``home_above_sea_m`` below home."""
+        est = self.sea_level.estimate(t_s)
+        if est is not None:
+            return est.down_m, est.rate_mps
+        last = self.sea_level.last()
+        return (last.down_m, 0.0) if last is not None else (self.checks.home_above_sea_m, 0.0)
+
+    def radar_height_at(self, t_s: float) -> float | None:
         """The radar height at ``t_s`` (interpolated between the two around it; the newest if ``t_s`` is later),
         None when no height lies within ``height_max_age_s``."""
         hs = self._heights
@@ -192,19 +265,19 @@ class PickupEstimates:
         physical edge of the marker the detector found (a nested one near touchdown), by default the outer one."""
         self.on_frame(t_s)
         c = self.checks
-        height_m = self.height_at(t_s)
-        if height_m is None:
+        height = self.height_at(t_s)
+        if height is None:
             return self._reject("no_height")
-        try:
-            state = self.history.at(t_s)
-        except OutsideHistoryError:
+        height_m, height_uncertainty_m = height
+        state = self.state_at(t_s)
+        if state is None:
             return self._reject("no_state")
         fix = self.tri.fix_marker(t_s, corners_px, state, height_m)
         if fix is None:
             return self._reject("no_ray")
-        focal = math.sqrt(self.tri.camera.fx_px * self.tri.camera.fy_px)
-        ratio = apparent_size_ratio(corners_px, fix, focal, size_m if size_m is not None else c.marker_size_m)
-        if not abs(ratio - 1.0) <= c.size_tolerance:
+        ratio = apparent_size_ratio(corners_px, fix, self.tri.camera, size_m if size_m is not None else c.marker_size_m)
+        tolerance = c.size_tolerance + height_uncertainty_m / max(fix.camera_height_m, 0.1)
+        if not abs(ratio - 1.0) <= tolerance:
             return self._reject("size")
         obs = fix.observation
         if not self.filter.initialised or self.filter.estimate(t_s) is None:
@@ -287,6 +360,7 @@ class PickupEstimates:
             fix_age_s=None if self._last_fix_t_s is None or est is None else t_s - self._last_fix_t_s,
             converged_for_s=None if self._converged_since_s is None else t_s - self._converged_since_s,
             height_above_sea_m=self.height_above_sea_m(t_s),
+            height_over_mean_sea_m=self.height_over_mean_sea_m(t_s),
             sensors=health,
             progress=progress,
         )

@@ -92,19 +92,14 @@ class ObjectTarget:
         self.telemetry = telemetry
         self.height_m = height_m
 
-    def _sea(self, t_s: float) -> tuple[float, float] | None:
-        """The mean sea surface (down) and its drift rate; the radar's instantaneous one until that exists."""
-        mean = self.model.mean_sea(t_s)
-        if mean is not None:
-            return mean.down_m, mean.rate_mps
-        pv = self.telemetry().pos_vel
-        h = self.model.height_above_sea_m(t_s)
-        return None if pv is None or h is None else (pv.pos_ned_m[2] + h, 0.0)
+    def _sea(self, t_s: float) -> tuple[float, float]:
+        """The mean sea surface (down) and its drift rate (above the radar's range: the last level it had)."""
+        return self.model.sea_reference(t_s)
 
     def _aim(self, t_s: float, height_m: float) -> TargetState | None:
         est = self.model.estimate(t_s)  # None: no lock, or the lock timed out
         sea = self._sea(t_s)
-        if est is None or sea is None:
+        if est is None:
             return None
         # horizontally the object (its wave motion included); vertically a height above the *mean* sea: the
         # vehicle does not ride the swell
@@ -145,6 +140,9 @@ class DescendTarget(ObjectTarget):
         # DESCEND was entered after ``converged_s`` of convergence; going on down needs a fresh fix and a
         # filter that is converged now
         good = snap.fix_age_s is not None and snap.fix_age_s <= self.fresh_s and snap.converged_for_s is not None
+        # and the sea is known: the radar sees it, or (under its first range, near the water) its mean level
+        # was tracked moments ago
+        good = good and (snap.height_above_sea_m is not None or snap.height_over_mean_sea_m is not None)
         if good:
             self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
         else:  # climb back to (and wait at) the safety height

@@ -23,7 +23,7 @@ from sim.wind import WindConfig
 async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, **params):
     settings = load_settings()
     vehicle = InProcessVehicle(seed=scenario.seed, wind=wind)
-    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
+    world = PickupWorld(vehicle, scenario, settings)
     table = load_mission("pickup")
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
     runners = []
@@ -60,7 +60,8 @@ async def test_calm_sea_pickup_goes_through_every_state_and_catches_the_object()
     ]  # fmt: skip
     assert flight.figures["picked_up"] and flight.figures["retries"] == 0
     drops, puts = flight.figures["queue_drops"], flight.figures["queue_puts"]
-    assert puts["camera"] > 1000 and puts["radar"] > 1000 and drops == {"camera": 0, "radar": 0}
+    # the radar sees the sea only within its 5 m: below the search height
+    assert puts["camera"] > 1000 and puts["radar"] > 300 and drops == {"camera": 0, "radar": 0}
     assert out.caught and len(out.grabs) == 1
     assert out.touchdown_error_m <= world.scenario.capture_radius_m  # the goal is 0.10 m: not yet
     assert_never_descends_low_without_a_fresh_fix(world, p)
@@ -98,7 +99,7 @@ async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks
     settings = load_settings()
     scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
     vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
-    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
+    world = PickupWorld(vehicle, scenario, settings)
     runners, blind = [], {}
 
     async def blind_low_in_descend():
@@ -135,7 +136,7 @@ async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_
     scenario = PickupScenario(seed=seed, sea_state=2, current_mps=0.3)
     settings = load_settings()
     vehicle = InProcessVehicle(seed=seed, wind=WindConfig())
-    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
+    world = PickupWorld(vehicle, scenario, settings)
     runners: list = []
     table = load_mission("pickup")
     flight = await fly_mission(

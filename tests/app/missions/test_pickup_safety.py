@@ -40,7 +40,7 @@ async def fly_until(state: str, then, scenario: PickupScenario, after_s: float =
     """Fly the calm pickup; once the mission has been in ``state`` for ``after_s``, call ``then(runner, vehicle)``."""
     settings = load_settings()
     vehicle = InProcessVehicle(seed=scenario.seed, wind=WindConfig.off())
-    world = PickupWorld(vehicle, scenario, settings.camera, settings.detector)
+    world = PickupWorld(vehicle, scenario, settings)
     runners = []
     task = asyncio.create_task(
         fly_mission(
