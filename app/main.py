@@ -311,6 +311,9 @@ async def trace_pickup(runner: MissionRunner, clock: Clock, events: EventLog) ->
         pv = runner.boundary.telemetry().pos_vel
         if pv is None:
             continue
+        while model.fix_log:
+            t_fix_s, n_m, e_m, result = model.fix_log.popleft()
+            events.write(t_fix_s, "fix", ne_m=[round(n_m, 3), round(e_m, 3)], result=result)
         snap = model.snapshot(t_s)
         target = snap.target
         events.write(

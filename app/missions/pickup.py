@@ -135,6 +135,9 @@ class PickupEstimates:
         self.search: SearchPattern | None = None
         self.last_estimate_ne_m: tuple[float, float] | None = None
         self.fix_times_s: deque[float] = deque(maxlen=100_000)  # capture times of the fused fixes
+        # every triangulated fix past the size check: (capture t_s, north, east, what became of it), for the
+        # run's log (``app.main`` drains it)
+        self.fix_log: deque[tuple[float, float, float, str]] = deque(maxlen=1000)
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
         self.picked_up = False
@@ -280,13 +283,17 @@ class PickupEstimates:
         if not abs(ratio - 1.0) <= tolerance:
             return self._reject("size")
         obs = fix.observation
+        n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]
         if not self.filter.initialised or self.filter.estimate(t_s) is None:
             if not self._confirmed(obs):
+                self.fix_log.append((t_s, n_m, e_m, "confirming"))
                 return self._reject("confirming")
             self.filter.reset()
         result = self.filter.update(obs)
         if not result.accepted:
+            self.fix_log.append((t_s, n_m, e_m, f"filter_{result.reason}"))
             return self._reject(f"filter_{result.reason}")
+        self.fix_log.append((t_s, n_m, e_m, "fused"))
         self.fixes += 1
         self._last_fix_t_s = t_s
         self.fix_times_s.append(t_s)

@@ -1,0 +1,62 @@
+"""The pickup end to end: the real CLI, real MAVSDK over UDP to the simulated PX4, the simulator's rendered
+camera over a socket (detected by the real OpenCV detector) and its X4M03 emulator on a pty (read by the real
+driver and altitude estimator). Real time.
+
+Where it stands (issue 11): over MAVLink the pickup succeeds in some runs of seed 1 and not in others (the
+rendered marker is lost for up to a second at a time low over the sea, and the descent climbs back), so this
+test asserts what every run must do — the sensors live through the queues, the object found, tracked and
+descended on, no touchdown off the object, ABORT honoured, the run's artefacts written — and prints the outcome.
+It gives the mission 150 s past the first DESCEND, then asks it to abort (SIGINT), as an operator would.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+
+import pytest
+
+from tests.e2e.cliutil import popen, read_jsonl, stop, wait_for_state
+
+pytestmark = pytest.mark.e2e
+
+
+def test_pickup_over_mavlink_finds_tracks_and_descends_on_the_object_with_the_served_camera_and_radar(tmp_path):
+    run_dir = tmp_path / "run"
+    proc = popen(
+        ["-m", "app.main", "--mission", "pickup.yaml", "--sim", "--seed", "1", "--run-dir", str(run_dir),
+         "--pilot-port", "0"],
+        tmp_path / "app.log",
+    )  # fmt: skip
+    try:
+        assert wait_for_state(run_dir / "events.jsonl", "DESCEND", 240.0), (tmp_path / "app.log").read_text()[-3000:]
+        deadline = time.monotonic() + 150.0
+        while proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.5)
+        code = stop(proc, signal.SIGINT, timeout_s=30.0)  # abort if still flying: zero, HOLD, then exit
+    finally:
+        stop(proc, signal.SIGKILL)
+    s = json.loads((run_dir / "summary.json").read_text())
+    brief = {k: s.get(k) for k in ("outcome", "reason", "states_visited", "touchdown_error_m", "time_to_pickup_s")}
+    print(json.dumps(brief), s.get("fixes"), s.get("fixes_rejected"), s["timing"].get("setpoint_interval_p99_s"))
+    assert code in (0, 1) and s["outcome"] in ("picked_up", "failed", "aborted"), (code, brief)
+    visited = s["states_visited"]
+    assert visited[:4] == ["WAIT_FOR_START", "TAKEOFF", "CALIBRATE_RADAR", "GOTO_SEARCH"]
+    assert {"APPROACH", "TRACK", "DESCEND"} <= set(visited)
+    assert s["radar_calibration"].startswith("ok")  # the background captured with the sea out of range
+    # the sensors were live: frames and heights reached the estimates through the queues, fixes were fused
+    assert s["queue_puts"]["camera"] > 500 and s["queue_puts"]["radar"] > 100, s["queue_puts"]
+    assert s["fixes"] > 50
+    # the simulator's truth: no touchdown off the object, whatever the outcome
+    grabs = [r for r in read_jsonl(run_dir / "sim_state.jsonl") if r.get("event") == "grab"]
+    assert all(g["error_m"] <= 0.25 for g in grabs) and s["off_target_touchdowns"] == 0, grabs
+    if s["outcome"] == "picked_up":
+        assert grabs[-1]["caught"] and s["touchdown_error_m"] == pytest.approx(grabs[-1]["error_m"], abs=1e-4)
+    if s["outcome"] == "aborted":  # from the vehicle's side: it ended in HOLD
+        modes = [r for r in read_jsonl(run_dir / "sim_state.jsonl") if r.get("event") == "mode"]
+        assert modes[-1]["mode"] == "HOLD", modes[-3:]
+    # the setpoint stream held its 50 Hz with camera and radar running (generous bound: a loaded CI machine)
+    assert s["timing"]["setpoint_interval_p99_s"] < 0.05
+    png = (run_dir / "report.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
