@@ -161,7 +161,15 @@ async def start_descend(io: MissionIO) -> None:
     p, m = io.params, _pickup(io)
     h = m.height_above_sea_m(io.now_s()) or p.track_height_m
     target = DescendTarget(
-        m, io.boundary.telemetry, h, p.descend_speed_mps, p.safety_height_m, p.fix_fresh_s, p.descend_converged_s
+        m,
+        io.boundary.telemetry,
+        h,
+        p.descend_speed_mps,
+        p.safety_height_m,
+        p.fix_fresh_s,
+        p.descend_converged_s,
+        p.final_height_m,
+        p.final_radius_m,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

@@ -64,6 +64,12 @@ class MissionParams(BaseModel):
     safety_height_m: float = Field(
         2.0, ge=0.5, le=20.0, description="never below this above the sea without a fresh converged fix, m"
     )
+    final_height_m: float = Field(
+        1.0, ge=0.0, le=10.0, description="below this over the sea, descend only right over the object, m"
+    )
+    final_radius_m: float = Field(
+        0.1, ge=0.01, le=5.0, description="… within this of the estimate (else wait at that height), m"
+    )
     touchdown_height_m: float = Field(0.3, ge=0.05, le=2.0, description="radar height that counts as touchdown, m")
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
     size_tolerance: float = Field(

@@ -275,7 +275,8 @@ class PickupEstimates:
         state = self.state_at(t_s)
         if state is None:
             return self._reject("no_state")
-        fix = self.tri.fix_marker(t_s, corners_px, state, height_m)
+        # the sea under the object differs from the height used by up to the waves: σ ≈ half that, along the ray
+        fix = self.tri.fix_marker(t_s, corners_px, state, height_m, height_std_m=height_uncertainty_m / 2.0)
         if fix is None:
             return self._reject("no_ray")
         ratio = apparent_size_ratio(corners_px, fix, self.tri.camera, size_m if size_m is not None else c.marker_size_m)

@@ -125,12 +125,17 @@ class DescendTarget(ObjectTarget):
         safety_height_m: float,
         fresh_s: float,
         converged_s: float,
+        final_height_m: float = 0.0,
+        final_radius_m: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m)
         self.speed_mps = speed_mps
         self.safety_height_m = safety_height_m
         self.fresh_s = fresh_s
         self.converged_s = converged_s
+        self.final_height_m = final_height_m
+        self.final_radius_m = final_radius_m
+        self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
         self._t_s: float | None = None
 
     def target_at(self, t_s: float) -> TargetState | None:
@@ -143,7 +148,9 @@ class DescendTarget(ObjectTarget):
         # and the sea is known: the radar sees it, or (under its first range, near the water) its mean level
         # was tracked moments ago
         good = good and (snap.height_above_sea_m is not None or snap.height_over_mean_sea_m is not None)
-        if good:
+        if good and self.height_m <= self.final_height_m and not self._over_the_object(t_s):
+            self.waits += 1  # the last part only right over the object: wait (at this height) until it is
+        elif good:
             self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
         else:  # climb back to (and wait at) the safety height
             self.height_m = max(self.height_m, self.safety_height_m)
@@ -151,6 +158,12 @@ class DescendTarget(ObjectTarget):
         # ahead) put the vehicle up to half a wave orbit off and lost the marker low (sea state 2: 0 of 3
         # seeds picked up with the lead, 20 of 20 without)
         return self._aim(t_s, self.height_m)
+
+    def _over_the_object(self, t_s: float) -> bool:
+        pv, est = self.telemetry().pos_vel, self.model.estimate(t_s)
+        if pv is None or est is None:
+            return False
+        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m) <= self.final_radius_m
 
 
 def horizontal_distance_m(a: Vec3, b: Vec3) -> float:

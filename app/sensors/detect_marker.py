@@ -137,13 +137,8 @@ class MarkerDetector(TrackingDetector):
         small = cv2.resize(image, None, fx=SEARCH_SCALE, fy=SEARCH_SCALE, interpolation=cv2.INTER_AREA)
         corners, ids, _ = self._reduced.detectMarkers(small)
         if ids is not None and self._any_ours(ids):
-            if self._seen_twice(ids):
-                return None  # no second chance at full resolution for an ID seen twice
-            found = self._pick(image, t_s, corners, ids, small.shape, SEARCH_SCALE, (0, 0), tracked=False)
-            if found is not None:
-                self._last_pass = "search_reduced"
-                return found
-            # ours, but cut by the image border: a nested marker may still be whole, too small for this pass
+            self._last_pass = "search_reduced"
+            return self._pick(image, t_s, corners, ids, small.shape, SEARCH_SCALE, (0, 0), tracked=False)
         corners, ids, _ = self._full.detectMarkers(image)
         found = self._pick(image, t_s, corners, ids, image.shape, 1.0, (0, 0), tracked=False)
         if found is not None:
@@ -154,10 +149,6 @@ class MarkerDetector(TrackingDetector):
 
     def _any_ours(self, ids: Any) -> bool:
         return any(int(i) in self._sizes_m for i in ids.ravel())
-
-    def _seen_twice(self, ids: Any) -> bool:
-        flat = [int(i) for i in ids.ravel()]
-        return any(flat.count(i) > 1 for i in set(flat) if i in self._sizes_m)
 
     def _pick(
         self,
@@ -171,23 +162,17 @@ class MarkerDetector(TrackingDetector):
         *,
         tracked: bool,
     ) -> PixelDetection | None:
-        """The marker of the set seen exactly once (the largest if several are), refined at full resolution.
-
-        A marker cut by the border (of the image or the window) is not used — its corners, and even its ID, are
-        not to be trusted — but it still counts as a sighting of its ID; a whole nested marker inside it is used.
-        """
-        if ids is None or self._seen_twice(ids):
-            return None  # zero or several matches of an ID: no detection
-        flat = [int(i) for i in ids.ravel()]
-        whole = [
-            k
-            for k, i in enumerate(flat)
-            if i in self._sizes_m and not _touches_border(corners[k].reshape(4, 2), crop_shape)
-        ]
-        if not whole:
+        """The marker of the set seen exactly once (the largest if several are), refined at full resolution."""
+        if ids is None:
             return None
+        flat = [int(i) for i in ids.ravel()]
+        ours = [k for k, marker_id in enumerate(flat) if marker_id in self._sizes_m]
+        if not ours or any(flat.count(flat[k]) > 1 for k in ours):
+            return None  # zero or several matches of an ID: no detection
         # pixel centres: (x + 0.5) / scale − 0.5 maps a scaled pixel back to full resolution
-        quads = {flat[k]: (corners[k].reshape(4, 2).astype(np.float64) + 0.5) / scale - 0.5 + offset for k in whole}
+        quads = {flat[k]: (corners[k].reshape(4, 2).astype(np.float64) + 0.5) / scale - 0.5 + offset for k in ours}
+        if any(_touches_border(corners[k].reshape(4, 2), crop_shape) for k in ours):
+            return None  # cut by the border: its corners (and even its ID) are not to be trusted
         best_id = max(quads, key=lambda i: _edge_px(quads[i]))
         if not self._concentric(quads, best_id):
             return None
