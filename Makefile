@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 RUN_DIR ?= runs/demo
 
-.PHONY: setup demo test lint eval bench clean
+.PHONY: setup demo circle test lint eval bench clean
 
 $(STAMP): pyproject.toml
 	@# A bare Debian has python3 but may lack venv/ensurepip: install it with apt-get (as root or via sudo).
@@ -18,9 +18,13 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-demo: $(STAMP)   ## fly the default simulated mission (circle) and print its summary
-	$(BIN)/python -m app.main --mission circle.yaml --sim --run-dir $(RUN_DIR)
-	@cat $(RUN_DIR)/summary.json
+demo: $(STAMP)   ## fly the default simulated mission (the pickup, sea state 2) and print its summary
+	$(BIN)/python -m app.main --mission pickup.yaml --sim --seed 1 --run-dir $(RUN_DIR); \
+	  status=$$?; cat $(RUN_DIR)/summary.json; echo "report: $(RUN_DIR)/report.png"; exit $$status
+
+circle: $(STAMP)  ## the circle-tracking mission (thesis §5.2)
+	$(BIN)/python -m app.main --mission circle.yaml --sim --run-dir runs/circle
+	@cat runs/circle/summary.json
 
 test: $(STAMP)   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
 	$(BIN)/python -m pytest -q
