@@ -6,18 +6,24 @@ as it is (only the corners found are undistorted later), and the work is cut thr
 - **tracking**: around the expected position only, in a window reaching ``roi_margin`` × the marker size from
   it each way, scaled down so the marker spans ~``TRACK_TARGET_PX`` pixels there;
 - **search** (no track, or the window missed): first the whole frame at ``SEARCH_SCALE`` (markers from
-  ~``SEARCH_REDUCED_MIN_PX`` px up), then, only if that found nothing, at full resolution for the small ones;
+  ~``SEARCH_REDUCED_MIN_PX`` px up), then, only if that found none of the set whole, at full resolution for the
+  small ones;
 - one adaptive-threshold window (``THRESHOLD_WINDOW_PX``) per pass instead of the default three (3, 13, 23 px),
-  and candidates outside the size range a pass is for are dropped before they are decoded.
+  and candidates outside the size range a pass is for are dropped before they are decoded (OpenCV measures a
+  perimeter in contour points, √2 fewer along a diagonal: the bound allows for a marker turned 45°, and the
+  marker's edge itself is checked after).
 
 Corners found at a reduced scale are refined at full resolution (``cv2.cornerSubPix`` in a window no wider than
-a fraction of a cell). A match needs the expected ID exactly once — zero or several matches of it give no
-detection (thesis) — and the centre is the mean of the four corners (eq. 4.3).
+a fraction of a cell); a marker small there is found again at full resolution around it instead. A match needs
+the expected ID exactly once — zero or several matches of it give no detection (thesis) — and the centre is the
+mean of the four corners (eq. 4.3).
 
 Nested markers (``nested_marker_ids``): each sits concentric in the centre of the one before, with an edge of
 half a cell of it — ``edge_k = marker_size_m / (2 (n + 2))^k`` for an n×n-bit dictionary — so the lock holds
 when the outer marker outgrows the image near touchdown. When several of the set are seen, the largest wins;
-outer and nested must agree on the centre. In a tracking window, duplicates are only seen inside the window.
+outer and nested must agree on the centre. A marker cut by the image border is not used, but a whole nested one
+inside it is (a tracking window leaves that to the search). In a tracking window, duplicates are only seen
+inside the window.
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ TRACK_TARGET_PX = 64  # in the tracking window the marker is scaled down to abou
 THRESHOLD_WINDOW_PX = 7  # adaptive-threshold window of every pass, px (at the pass's scale)
 PIXELS_PER_CELL = 8  # bit sampling resolution; the default 4 misreads blurred, rotated markers
 CORNER_WINDOW_CELL_FRACTION = 0.35  # sub-pixel refinement looks no further than this part of a cell
+MIN_EDGE_SLACK = 0.9  # a pass's smallest edge, measured: a small marker's corners come out a pixel or so inside
 
 
 def nested_size_ratio(bits: int) -> float:
@@ -57,11 +64,14 @@ def marker_sizes_m(settings: DetectorSettings) -> tuple[float, ...]:
 
 
 def _parameters(min_perimeter_rate: float, max_perimeter_rate: float) -> cv2.aruco.DetectorParameters:
+    """Parameters of one pass; the perimeter rates are 4 × the edge it is for over the image's long side."""
     p = cv2.aruco.DetectorParameters()
     p.adaptiveThreshWinSizeMin = THRESHOLD_WINDOW_PX
     p.adaptiveThreshWinSizeMax = THRESHOLD_WINDOW_PX
     p.adaptiveThreshWinSizeStep = 10
-    p.minMarkerPerimeterRate = min_perimeter_rate
+    # OpenCV counts a candidate's perimeter in contour points, and an edge at 45° has only 1/√2 point per pixel
+    # of length: the lower bound is lowered by as much, so that a marker turned 45° counts at its full size
+    p.minMarkerPerimeterRate = min_perimeter_rate / math.sqrt(2.0)
     p.maxMarkerPerimeterRate = max_perimeter_rate
     p.perspectiveRemovePixelPerCell = PIXELS_PER_CELL
     p.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_NONE  # refined at full resolution below
@@ -111,7 +121,9 @@ class MarkerDetector(TrackingDetector):
 
     # -- passes ------------------------------------------------------------------------------------------------
 
-    def _in_window(self, image: Image, t_s: float, hint: DetectionHint) -> PixelDetection | None:
+    def _in_window(
+        self, image: Image, t_s: float, hint: DetectionHint, *, tracked: bool = True
+    ) -> PixelDetection | None:
         size = max(hint.size_px, 1.0)
         # the window reaches roi_margin × the size from the expected centre each way (so a turned marker and its
         # white margin fit with room to move), plus the hint's own uncertainty
@@ -128,51 +140,86 @@ class MarkerDetector(TrackingDetector):
         params = _parameters(min(4 * size * scale / 3 / long_side, 4.0), 4.0)
         self._window.setDetectorParameters(params)
         corners, ids, _ = self._window.detectMarkers(crop)
-        found = self._pick(image, t_s, corners, ids, crop.shape, scale, (win.x0, win.y0), tracked=True)
-        if found is not None:
+        # one of the set cut by the window's edge: the search decides (the window may hide a larger one)
+        quads = self._whole(corners, ids, crop.shape, scale, (win.x0, win.y0), size / 3, cut_vetoes=True)
+        found = self._pick(image, t_s, quads, scale, tracked=tracked) if quads else None
+        if found is not None and tracked:
             self._last_pass = "track"
         return found
 
     def _search(self, image: Image, t_s: float) -> PixelDetection | None:
         small = cv2.resize(image, None, fx=SEARCH_SCALE, fy=SEARCH_SCALE, interpolation=cv2.INTER_AREA)
         corners, ids, _ = self._reduced.detectMarkers(small)
-        if ids is not None and self._any_ours(ids):
-            self._last_pass = "search_reduced"
-            return self._pick(image, t_s, corners, ids, small.shape, SEARCH_SCALE, (0, 0), tracked=False)
+        quads = self._whole(corners, ids, small.shape, SEARCH_SCALE, (0, 0), SEARCH_REDUCED_MIN_PX, cut_vetoes=False)
+        if quads is None:
+            return None  # an ID seen twice: no detection, and no second look at full resolution
+        if quads:
+            found = self._pick(image, t_s, quads, SEARCH_SCALE, tracked=False)
+            if found is not None:
+                self._last_pass = "search_reduced"
+                return self._sharpened(image, t_s, found)
+            return None  # seen whole and refused (not concentric)
+        # none of the set, or only cut by the image border (a nested one may be whole, too small for this pass)
         corners, ids, _ = self._full.detectMarkers(image)
-        found = self._pick(image, t_s, corners, ids, image.shape, 1.0, (0, 0), tracked=False)
+        quads = self._whole(corners, ids, image.shape, 1.0, (0, 0), SEARCH_FULL_MIN_PX, cut_vetoes=False)
+        found = self._pick(image, t_s, quads, 1.0, tracked=False) if quads else None
         if found is not None:
             self._last_pass = "search_full"
         return found
 
+    def _sharpened(self, image: Image, t_s: float, found: PixelDetection) -> PixelDetection:
+        """A marker the reduced pass found small, found again at full resolution around it (better corners).
+
+        Its corners are off by about a reduced pixel; refinement mends that only where a cell's fraction is wider.
+        """
+        if found.size_px >= TRACK_TARGET_PX:
+            return found
+        again = self._in_window(image, t_s, DetectionHint(found.center_px, found.size_px), tracked=False)
+        return again if again is not None and again.marker_id == found.marker_id else found
+
     # -- choosing and refining -----------------------------------------------------------------------------------
 
-    def _any_ours(self, ids: Any) -> bool:
-        return any(int(i) in self._sizes_m for i in ids.ravel())
-
-    def _pick(
+    def _whole(
         self,
-        image: Image,
-        t_s: float,
         corners: Sequence[Any],
         ids: Any,
         crop_shape: tuple[int, ...],
         scale: float,
         offset: tuple[int, int],
+        min_edge_px: float,
         *,
-        tracked: bool,
-    ) -> PixelDetection | None:
-        """The marker of the set seen exactly once (the largest if several are), refined at full resolution."""
+        cut_vetoes: bool,
+    ) -> dict[int, NDArray[np.float64]] | None:
+        """The pass's markers of the set, full-resolution corners by ID; None: the pass must give no detection.
+
+        An ID of the set seen twice gives None. A marker cut by the border (of the image or the window) is left
+        out — its corners, and even its ID, are not to be trusted — and a whole nested marker inside it kept; with
+        ``cut_vetoes`` it gives None instead.
+        """
         if ids is None:
-            return None
+            return {}
         flat = [int(i) for i in ids.ravel()]
-        ours = [k for k, marker_id in enumerate(flat) if marker_id in self._sizes_m]
-        if not ours or any(flat.count(flat[k]) > 1 for k in ours):
-            return None  # zero or several matches of an ID: no detection
+        if any(flat.count(i) > 1 for i in set(flat) if i in self._sizes_m):
+            return None  # several matches of an ID: no detection
+        ours = [k for k, i in enumerate(flat) if i in self._sizes_m]
+        cut = [k for k in ours if _touches_border(corners[k].reshape(4, 2), crop_shape)]
+        if cut and cut_vetoes:
+            return None
         # pixel centres: (x + 0.5) / scale − 0.5 maps a scaled pixel back to full resolution
-        quads = {flat[k]: (corners[k].reshape(4, 2).astype(np.float64) + 0.5) / scale - 0.5 + offset for k in ours}
-        if any(_touches_border(corners[k].reshape(4, 2), crop_shape) for k in ours):
-            return None  # cut by the border: its corners (and even its ID) are not to be trusted
+        quads = {
+            flat[k]: (corners[k].reshape(4, 2).astype(np.float64) + 0.5) / scale - 0.5 + offset
+            for k in ours
+            if k not in cut
+        }
+        # a pass is for markers from min_edge_px up (its lower perimeter bound lets smaller ones through)
+        if quads and max(_edge_px(q) for q in quads.values()) < MIN_EDGE_SLACK * min_edge_px:
+            return {}
+        return quads
+
+    def _pick(
+        self, image: Image, t_s: float, quads: dict[int, NDArray[np.float64]], scale: float, *, tracked: bool
+    ) -> PixelDetection | None:
+        """The largest marker of the set, refined at full resolution; None if the set disagrees on the centre."""
         best_id = max(quads, key=lambda i: _edge_px(quads[i]))
         if not self._concentric(quads, best_id):
             return None

@@ -108,3 +108,34 @@ def test_other_dictionaries_from_the_settings_work_alike(dictionary: str) -> Non
     found = detector(settings).detect(frame.image, 0.0)
     assert found is not None and found.marker_id == 11
     assert np.hypot(*np.subtract(found.center_px, frame.truth.center_px or (0, 0))) < 0.5
+
+
+def test_an_outer_marker_just_cut_by_the_image_border_does_not_hide_the_nested_one() -> None:
+    """Its decoded but cut quad used to veto the frame, and the full-resolution pass never ran."""
+    nested = DetectorSettings(nested_marker_ids=(8,))
+    frame = render_at((640, 831), 220, detector=nested, object_yaw_rad=0.0)
+    assert not frame.truth.in_view  # the outer marker's lower edge is just past the border
+    found = detector(nested).detect(frame.image, 0.0)
+    assert found is not None and found.marker_id == 8
+    assert np.hypot(*np.subtract(found.center_px, frame.truth.center_projected_px or (0, 0))) < 0.5
+
+
+@pytest.mark.parametrize("object_yaw_rad", [0.8, 1.1, 1.3])
+def test_a_small_marker_turned_about_45_degrees_is_found_at_its_true_size(object_yaw_rad: float) -> None:
+    """OpenCV counts the perimeter in contour points, √2 fewer along a diagonal: a 16 px marker was too small."""
+    frame = render_at((900, 600), 16, object_yaw_rad=object_yaw_rad)
+    d = detector()
+    found = d.detect(frame.image, 0.0)
+    assert found is not None and d.last_pass == "search_full"
+    assert np.hypot(*np.subtract(found.center_px, frame.truth.center_px or (0, 0))) < 1.0
+
+
+def test_a_nested_id_away_from_the_marker_centre_gives_no_detection_in_any_pass() -> None:
+    """The reduced pass refuses it (not concentric), and the full pass, which alone would see it, is not asked."""
+    nested = DetectorSettings(nested_marker_ids=(8,))
+    frame = render_at((400, 480), 120, detector=nested)
+    close = render_at((640, 480), 480, detector=nested)  # its nested marker is 40 px across
+    x, y = (int(c) for c in close.truth.center_projected_px or (0, 0))
+    image = paste(frame.image, close.image[y - 35 : y + 35, x - 35 : x + 35], (900, 300))
+    assert detector(nested).detect(frame.image, 0.0) is not None
+    assert detector(nested).detect(image, 0.0) is None
