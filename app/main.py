@@ -14,6 +14,7 @@ import asyncio
 import contextlib
 import datetime as dt
 import json
+import math
 import signal
 import socket
 import subprocess
@@ -209,7 +210,9 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
         confirm_frames=p.confirm_frames,
         converged_sigma_m=p.converged_sigma_m,
     )
-    tri = SeaPlaneTriangulator.from_settings(settings.camera)
+    tri = SeaPlaneTriangulator.from_settings(
+        settings.camera, attitude_std_rad=math.radians(settings.camera.attitude_noise_std_deg)
+    )
     return PickupEstimates(tri, make_target_filter(p), checks, search_centre_ne_m=p.search_start_ne_m)
 
 

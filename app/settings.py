@@ -164,6 +164,9 @@ class CameraSettings(_Model):
         (0.0, 0.0, 0.1), description="camera position from the body origin, forward/right/down, m"
     )
     pixel_noise_std_px: float = Field(0.5, ge=0.05, le=20.0, description="detection noise for the covariance, px")
+    attitude_noise_std_deg: float = Field(
+        0.0, ge=0.0, le=10.0, description="attitude error at a frame's capture time, for the covariance, deg"
+    )
     auto_exposure: bool = Field(True, description="keep the mean brightness in the band (switchable at run time)")
     brightness_low: float = Field(100.0, ge=0.0, le=255.0, description="auto-exposure band low (thesis 100), grey")
     brightness_high: float = Field(140.0, ge=0.0, le=255.0, description="auto-exposure band high (thesis 140), grey")

@@ -116,9 +116,13 @@ class PickupWorld:
             # the radar measures from its antenna, off the body origin by the lever arm
             r_ned_body = euler_zyx_to_matrix(truth.roll_rad, truth.pitch_rad, truth.yaw_rad)
             ant = np.asarray(p) + r_ned_body @ self.radar_arm_frd_m
-            radar_m = -float(self.sea.surface_elevation_m(t_s, ant[0], ant[1])) - ant[2]
-            if sc.radar_min_range_m <= radar_m <= sc.radar_range_m:  # outside its ranges the radar sees no sea
-                feeds.heights.put(HeightSample(t_s, radar_m + float(self.rng.normal(0.0, sc.radar_noise_m))))
+            sea_under_antenna_down = -float(self.sea.surface_elevation_m(t_s, ant[0], ant[1]))
+            antenna_m = sea_under_antenna_down - ant[2]
+            if sc.radar_min_range_m <= antenna_m <= sc.radar_range_m:  # outside its ranges the radar sees no sea
+                # what the radar task hands on: the body origin's height over the sea under the antenna (its
+                # estimator takes the lever arm out)
+                body_m = sea_under_antenna_down - p[2]
+                feeds.heights.put(HeightSample(t_s, body_m + float(self.rng.normal(0.0, sc.radar_noise_m))))
             sea_wd = float(self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])[2])
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
             # a caught object hangs in the gripper, out of the camera's sea
