@@ -50,6 +50,9 @@ class PickupScenario:
     radar_range_m: float = 5.0  # the radar's last range (settings.radar.frame_area_end_m)
     radar_min_range_m: float = 0.45  # … and its first (the frame area's start, the pulse's length)
     radar_fps_hz: float = 10.0
+    # a sea echo that reaches this far past the last range (a range ambiguity, a strong swell): the background
+    # capture fails until the vehicle is higher still
+    radar_echo_beyond_range_m: float = 0.0
     capture_radius_m: float = 0.25
     gentle_mps: float = 1.0
     fail_first_grabs: int = 0  # these many grabs miss whatever the touchdown (a gripper that slipped)
@@ -83,6 +86,7 @@ class PickupWorld:
         # under the vehicle) — for checking descents from the vehicle's side
         self.samples: list[tuple[float, float, float, float]] = []
         self.calibrations = 0
+        self.calibrated_at_m: float | None = None
         self.camera_blind = False  # set from outside: the marker is not detected (glare, spray, occlusion)
 
     async def calibrate_radar(self, n_frames: int) -> None:
@@ -93,9 +97,10 @@ class PickupWorld:
             await asyncio.sleep(1.0 / sc.radar_fps_hz)
             p = self.vehicle.truth().pos_ned_m
             height_m = -float(self.sea.surface_elevation_m(loop.time(), p[0], p[1])) - p[2]
-            if height_m <= sc.radar_range_m:
+            if height_m <= sc.radar_range_m + sc.radar_echo_beyond_range_m:
                 raise RuntimeError(f"an echo at {height_m:.1f} m: the sea is in range")
         self.calibrations += 1
+        self.calibrated_at_m = height_m
 
     async def sensors(self, feeds: PickupFeeds) -> None:
         """The camera and the radar, producing into the mission's queues until cancelled."""

@@ -148,3 +148,22 @@ async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_
     assert flight.result.outcome == "picked_up" and out.caught
     assert all(g["error_m"] <= scenario.capture_radius_m for g in out.grabs)  # never off target on the water
     assert_never_descends_low_without_a_fresh_fix(world, table.params)
+
+
+@pytest.mark.parametrize(("echo_beyond_m", "expected"), [(7.5, "ok at 13 m"), (30.0, "failed: ")])
+@pytest.mark.looptime(noop_cycles=2)
+async def test_radar_calibration_climbs_higher_when_the_sea_is_still_in_range_and_goes_on_without_it(
+    echo_beyond_m, expected
+):
+    """The background capture fails while the sea echoes (here up to 5 + ``echo_beyond_m`` m): CALIBRATE_RADAR
+    tries 3 m higher, three heights in all; if every one fails, the mission goes on with the clutter map."""
+    scenario = PickupScenario(seed=2, sea_state=0, current_mps=0.1, radar_echo_beyond_range_m=echo_beyond_m)
+    flight, world, p = await fly_pickup(scenario, WindConfig.off())
+    calibration = flight.figures["radar_calibration"]
+    print(calibration, world.calibrated_at_m)
+    assert calibration.startswith(expected)
+    if expected.startswith("ok"):  # from the vehicle's side: it captured the background 13 m over the sea
+        assert world.calibrations == 1 and 12.5 <= world.calibrated_at_m <= 13.6
+    else:
+        assert world.calibrations == 0 and calibration.count("the sea is in range") == p.calibrate_attempts
+    assert flight.result.outcome == "picked_up"  # with or without the map
