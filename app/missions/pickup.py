@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from app.estimators.sea_level import MeanSeaLevel, SeaLevelEstimate
+from app.estimators.sea_level import MeanSeaLevel
 from app.estimators.state_history import OutsideHistoryError, StateHistory
 from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
@@ -249,12 +249,6 @@ class PickupEstimates:
                 f = (t_s - t1) / (t0 - t1) if t0 > t1 else 1.0
                 return h1 + f * (h0 - h1)
         return hs[0][1] if hs[0][0] - t_s <= max_age_s else None
-
-    def mean_sea(self, t_s: float) -> SeaLevelEstimate | None:
-        """The mean sea surface (down, autopilot frame) and its drift; None without recent radar heights."""
-        if self.height_above_sea_m(t_s) is None:
-            return None
-        return self.sea_level.estimate(t_s)
 
     def on_radar_lost(self) -> None:
         self._radar_lost = True

@@ -18,8 +18,8 @@ def write(tmp_path: Path, table: dict) -> str:
     return str(p)
 
 
-def broken(tmp_path, mutate) -> MissionTableError:
-    t = copy.deepcopy(CIRCLE)
+def broken(tmp_path, mutate, table: dict = CIRCLE) -> MissionTableError:
+    t = copy.deepcopy(table)
     mutate(t)
     with pytest.raises(MissionTableError) as e:
         load_mission(write(tmp_path, t))
@@ -120,11 +120,7 @@ PICKUP = yaml.safe_load((MISSIONS_DIR / "pickup.yaml").read_text())
 
 
 def broken_pickup(tmp_path, mutate) -> MissionTableError:
-    t = copy.deepcopy(PICKUP)
-    mutate(t)
-    with pytest.raises(MissionTableError) as e:
-        load_mission(write(tmp_path, t))
-    return e.value
+    return broken(tmp_path, mutate, PICKUP)
 
 
 def test_the_pickup_loads_with_its_requests():
