@@ -76,7 +76,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     sim.add_argument(
         "--sea-state", type=number(0, 5, "(WMO code)", int), default=2, help="pickup: the sea state (default 2)"
     )
-    sim.add_argument("--object", choices=("marker",), default="marker", help="pickup: what floats (buoy: not yet)")
+    sim.add_argument(
+        "--object",
+        choices=("marker", "buoy"),
+        default="marker",
+        help="pickup: what floats — the ArUco marker, or a plain buoy (settings' detector.buoy_diameter_m; the app "
+        "then uses the buoy detector)",
+    )
     sim.add_argument(
         "--pilot-port",
         type=UDP_PORT,
@@ -128,6 +134,7 @@ def start_simulator(
         cmd += ["--gust-mps", str(args.gust_mps)]
     if sensors is not None:
         cmd += ["--camera-socket", sensors.camera, "--radar-link", sensors.radar, "--sea-state", str(args.sea_state)]
+        cmd += ["--object", args.object]
         if args.settings is not None:
             cmd += ["--settings", str(args.settings)]
     log = (run_dir / "sim.log").open("wb")
@@ -205,6 +212,7 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
     p = table.params
     checks = FixChecks(
         marker_size_m=p.marker_size_m,
+        buoy_diameter_m=settings.detector.buoy_diameter_m,
         size_tolerance=p.size_tolerance,
         height_uncertainty_m=SEA_STATES[p.sea_state].hs_m / 2.0,  # the sea under the radar vs under the object
         confirm_frames=p.confirm_frames,
@@ -404,6 +412,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         settings = load_settings(args.settings)
         table = load_mission(args.mission)
+        if args.sim and args.object == "buoy":  # the simulated object is a buoy: look for one
+            settings = settings.model_copy(update={"detector": settings.detector.model_copy(update={"kind": "buoy"})})
     except ConfigError as e:
         print(f"seapick: invalid input: {e}", file=sys.stderr)
         return 2

@@ -10,8 +10,8 @@ CLI::
     python -m sim.autopilot --udp 127.0.0.1:14540 [--pilot-port 14580] [--profile px4|px4-sih|ardupilot]
         [--seed N] [--wind-mps 5] [--gust-mps 1] [--wind-from-deg 240] [--no-wind]
         [--state-log FILE] [--home LAT,LON,ALT] [--param NAME=VALUE ...]
-        [--camera-socket unix:PATH --radar-link PATH [--sea-state N] [--current-mps V] [--object-ne N,E]
-         [--fail-first-grabs K] [--settings FILE]]    # the pickup's world: sea, object, camera, radar
+        [--camera-socket unix:PATH --radar-link PATH [--sea-state N] [--current-mps V] [--object marker|buoy]
+         [--object-ne N,E] [--fail-first-grabs K] [--settings FILE]]    # the pickup's world: sea, object, camera, radar
 
 With ``--camera-socket`` or ``--radar-link`` the process also simulates the pickup's world
 (``sim.pickup_serve``): the sea and the floating object, the camera served on the socket, the X4M03 emulator
@@ -104,6 +104,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     world.add_argument("--radar-link", default=None, help="serve the X4M03 emulator's pty at this symlink")
     world.add_argument("--sea-state", type=number(0, 5, "(WMO code)", int), default=2, help="WMO sea state")
     world.add_argument("--current-mps", type=number(0.0, 3.0, "m/s"), default=0.3, help="surface current")
+    world.add_argument("--object", choices=("marker", "buoy"), default="marker", help="what floats (default marker)")
     world.add_argument("--object-ne", type=_pair, default=(40.0, 20.0), help="N,E: the object's start, m")
     world.add_argument("--fail-first-grabs", type=number(0, 100, "", int), default=0, help="grabs that slip")
     world.add_argument("--settings", type=Path, default=None, help="the camera and detector (the app's settings)")
@@ -158,10 +159,12 @@ def pickup_server(sim: SimAutopilot, args: argparse.Namespace) -> PickupServer |
         current_mps=args.current_mps,
         object_start_ne_m=args.object_ne,
         marker_size_m=settings.detector.marker_size_m,
+        object_kind=args.object,
         fail_first_grabs=args.fail_first_grabs,
     )
     config = ServeConfig(scenario, args.camera_socket, args.radar_link)
-    return PickupServer(sim, config, settings.camera, settings.detector)
+    detector = settings.detector.model_copy(update={"kind": "buoy" if args.object == "buoy" else "aruco"})
+    return PickupServer(sim, config, settings.camera, detector)
 
 
 def main(argv: list[str] | None = None) -> int:

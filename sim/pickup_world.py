@@ -26,7 +26,7 @@ import numpy as np
 
 from app.estimators.rotations import euler_zyx_to_matrix
 from app.missions.pickup import RadarCalibrator
-from app.missions.pickup_feeds import HeightSample, MarkerObservation, PickupFeeds
+from app.missions.pickup_feeds import CameraObservation, HeightSample, PickupFeeds
 from app.sensors.detect_marker import SEARCH_FULL_MIN_PX, marker_sizes_m
 from app.settings import Settings
 from sim.camera_geometry import GeometricCamera
@@ -34,6 +34,8 @@ from sim.inproc import InProcessVehicle
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
 
 MIN_EDGE_PX = SEARCH_FULL_MIN_PX  # a smaller marker is not decoded
+MIN_BUOY_PX = 8.0  # a buoy smaller than this across is not found (the buoy detector's smallest radius, with margin)
+BUOY_NOISE_PX = 1.0  # the buoy detector's centre: a Hough circle refined by the disc's moments
 
 
 @dataclass
@@ -43,6 +45,7 @@ class PickupScenario:
     current_mps: float = 0.3
     object_start_ne_m: tuple[float, float] = (40.0, 20.0)
     marker_size_m: float = 0.30
+    object_kind: str = "marker"  # or "buoy": a sphere of the detector's buoy_diameter_m
     frame_period_s: float = 1.0 / 15.0
     latency_s: float = 0.06
     pixel_noise_px: float = 0.5
@@ -80,6 +83,7 @@ class PickupWorld:
         self.radar_arm_frd_m = np.asarray(settings.radar.lever_arm_frd_m, dtype=np.float64)
         self.rng = np.random.default_rng(sc.seed + 1000)
         self.marker_sizes_m = marker_sizes_m(settings.detector.model_copy(update={"marker_size_m": sc.marker_size_m}))
+        self.buoy_diameter_m = settings.detector.buoy_diameter_m
         self.outcome = PickupOutcome()
         self._gripper_closed = False
         # per camera frame, from the truth: (t_s, height above the sea, down speed, the sea surface's down speed
@@ -106,7 +110,7 @@ class PickupWorld:
         """The camera and the radar, producing into the mission's queues until cancelled."""
         feeds.set_radar_calibrator(RadarCalibrator(self.scenario.radar_range_m, self.calibrate_radar))
         loop = asyncio.get_running_loop()
-        pending: list[tuple[float, tuple[np.ndarray, float] | None]] = []
+        pending: list[CameraObservation] = []
         next_s = loop.time()
         sc = self.scenario
         while True:
@@ -131,19 +135,18 @@ class PickupWorld:
             sea_wd = float(self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])[2])
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
             # a caught object hangs in the gripper, out of the camera's sea
-            seen = None if self.outcome.caught or self.camera_blind else self._largest_seen(t_s, truth, o.pos_ned_m)
-            pending.append((t_s, seen))
-            while pending and pending[0][0] + sc.latency_s <= t_s:
-                t_capture_s, found = pending.pop(0)
-                if found is None:
-                    feeds.frames.put(MarkerObservation(t_capture_s, None))
-                else:
-                    corners, size_m = found
-                    px = tuple((float(u), float(v)) for u, v in corners)
-                    feeds.frames.put(MarkerObservation(t_capture_s, px, size_m))
+            blind = self.outcome.caught or self.camera_blind
+            if blind:
+                pending.append(CameraObservation(t_s))
+            elif sc.object_kind == "buoy":
+                pending.append(self._buoy_seen(t_s, truth, o.pos_ned_m))
+            else:
+                pending.append(self._largest_seen(t_s, truth, o.pos_ned_m))
+            while pending and pending[0].t_s + sc.latency_s <= t_s:
+                feeds.frames.put(pending.pop(0))
 
-    def _largest_seen(self, t_s: float, truth: Any, centre_ned_m: Any) -> tuple[np.ndarray, float] | None:
-        """The largest marker of the set wholly in the image and big enough to decode: (corners, its edge)."""
+    def _largest_seen(self, t_s: float, truth: Any, centre_ned_m: Any) -> CameraObservation:
+        """The largest marker of the set wholly in the image and big enough to decode (its corners, its edge)."""
         p = truth.pos_ned_m
         for size_m in self.marker_sizes_m:
             f = self.camera.frame(
@@ -152,8 +155,23 @@ class PickupWorld:
             c = f.corners_true_px
             edge_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
             if f.visible and edge_px >= MIN_EDGE_PX:
-                return f.corners_px, size_m
-        return None
+                return CameraObservation(t_s, tuple((float(u), float(v)) for u, v in f.corners_px), size_m)
+        return CameraObservation(t_s)
+
+    def _buoy_seen(self, t_s: float, truth: Any, centre_ned_m: Any) -> CameraObservation:
+        """The buoy's centre (with the detector's noise) and diameter, when it is wholly in the image and big enough.
+        Its outline is taken as a level disc's of its diameter: within a few per cent of a sphere's in the image's
+        middle."""
+        p = truth.pos_ned_m
+        f = self.camera.frame(
+            t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, centre_ned_m, marker_size_m=self.buoy_diameter_m
+        )
+        c = f.corners_true_px
+        diameter_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+        if not f.visible or not diameter_px >= MIN_BUOY_PX:
+            return CameraObservation(t_s)
+        u, v = f.centre_true_px + self.rng.normal(0.0, BUOY_NOISE_PX, 2)
+        return CameraObservation(t_s, center_px=(float(u), float(v)), diameter_px=diameter_px)
 
     def _judge_grab(self, t_s: float, truth: Any) -> None:
         if truth.gripper_closed and not self._gripper_closed:

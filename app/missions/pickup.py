@@ -3,19 +3,21 @@
 Inputs arrive from the sensor tasks, each stamped with the time it was *measured* (loop clock):
 - vehicle samples (position and attitude) → the state history (``on_vehicle_sample``);
 - the radar's height above the sea (``on_height``), or its loss (``on_radar_lost``);
-- marker detections: four raw corner pixels at the frame's capture time (``on_marker``).
+- detections at the frame's capture time: a marker's four raw corner pixels (``on_marker``), or a buoy's
+  centre and diameter in raw pixels (``on_buoy``).
 
 A detection becomes a fix only if it passes, in order (each rejection counted by reason):
 1. the vehicle state at the capture time is in the history, and a fresh radar height exists;
 2. the ray meets the sea (``SeaPlaneTriangulator``);
-3. **size**: the marker's apparent size matches its known physical size at that range: √(measured area /
+3. **size**: the marker's (buoy's) apparent size matches its known physical size at that range: √(measured area /
    expected area) within ``1 ± (size_tolerance + height_uncertainty_m / h)``, the expected area that of a
    level square of its edge at the fix, on the undistorted image plane (``apparent_size_ratio``: lens
    distortion and off-axis views do not bias it), h the camera's height. The range comes from the radar's
    height over the sea *under the vehicle*, which differs from the sea under the object by up to the waves'
    height — a relative error that grows as the vehicle comes down. From 10 m in sea state 2 (±0.25 m) a
    detection must be within ±17.5 % of the marker's size: a same-ID print of 0.2 m (20 px, ratio 0.67–0.73
-   on rendered frames) is refused, the marker itself (0.93–1.0) is not;
+   on rendered frames) is refused, the marker itself (0.93–1.0) is not. A buoy is a sphere of the detector's
+   ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
    must agree within ``confirm_radius_m``; only then is the filter started (with the newest of them).
    Once locked, the filter's own innovation gate judges every fix; when the lock times out, confirmation
@@ -68,6 +70,7 @@ class RadarCalibrator:
 @dataclass(frozen=True, slots=True)
 class FixChecks:
     marker_size_m: float = 0.30  # edge of the printed marker, m
+    buoy_diameter_m: float = 0.15  # a buoy's diameter (the buoy detector's), m
     size_tolerance: float = 0.15  # |√(area ratio) − 1| allowed with an exact range …
     height_uncertainty_m: float = 0.25  # … plus this over the camera's height (the waves: Hs/2)
     altitude_uncertainty_m: float = 0.5  # a height from the altitude over the sea reference: this much worse
@@ -86,6 +89,26 @@ def polygon_area(corners: ArrayLike) -> float:
     c = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     x, y = c[:, 0], c[:, 1]
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def sphere_size_ratio(
+    center_px: tuple[float, float], diameter_px: float, fix: SeaPlaneFix, camera: CameraModel, diameter_m: float
+) -> float:
+    """Measured over expected apparent diameter of a sphere (a buoy) seen along ``fix``'s ray (1.0 = right size).
+
+    On the undistorted image plane a small sphere of diameter D at range r, its centre β from the optical axis,
+    is an ellipse D/(r cos β) across the radial direction's normal and D/(r cos² β) along it; the measured
+    diameter is taken through the undistortion along both image axes, the two compared as geometric means.
+    """
+    u, v = center_px
+    half = diameter_px / 2.0
+    xy = camera.undistort_to_normalized(np.array([[u - half, v], [u + half, v], [u, v - half], [u, v + half]]))
+    measured = math.sqrt(abs(float(xy[1, 0] - xy[0, 0])) * abs(float(xy[3, 1] - xy[2, 1])))
+    cx, cy = camera.undistort_to_normalized(np.array([[u, v]], dtype=np.float64))[0]
+    cos_beta = 1.0 / math.sqrt(1.0 + cx * cx + cy * cy)
+    range_m = fix.camera_height_m / max(math.cos(fix.off_vertical_rad), 1e-6)
+    expected = diameter_m / (range_m * cos_beta**1.5)
+    return measured / expected if expected > 0.0 else math.inf
 
 
 def apparent_size_ratio(corners_px: ArrayLike, fix: SeaPlaneFix, camera: CameraModel, size_m: float) -> float:
@@ -250,6 +273,12 @@ class PickupEstimates:
                 return h1 + f * (h0 - h1)
         return hs[0][1] if hs[0][0] - t_s <= max_age_s else None
 
+    def latest_height_m(self) -> float | None:
+        """The height above the sea at the newest camera frame, for a detector that sizes its search by it."""
+        t_s = self._last_frame_t_s if self._last_frame_t_s is not None else (self._height or (0.0, 0.0))[0]
+        h = self.height_at(t_s)
+        return None if h is None else h[0]
+
     def on_radar_lost(self) -> None:
         self._radar_lost = True
 
@@ -260,6 +289,27 @@ class PickupEstimates:
     def on_marker(self, t_s: float, corners_px: ArrayLike, size_m: float | None = None) -> bool:
         """One marker detection at capture time ``t_s``; True when it was fused into the filter. ``size_m`` is the
         physical edge of the marker the detector found (a nested one near touchdown), by default the outer one."""
+        edge_m = size_m if size_m is not None else self.checks.marker_size_m
+        return self._on_detection(
+            t_s,
+            lambda state, h_m, std_m: self.tri.fix_marker(t_s, corners_px, state, h_m, height_std_m=std_m),
+            lambda fix: apparent_size_ratio(corners_px, fix, self.tri.camera, edge_m),
+        )
+
+    def on_buoy(self, t_s: float, center_px: tuple[float, float], diameter_px: float) -> bool:
+        """One buoy detection (its centre and diameter in raw pixels) at capture time ``t_s``; as ``on_marker``."""
+        return self._on_detection(
+            t_s,
+            lambda state, h_m, std_m: self.tri.fix_pixel(t_s, center_px, state, h_m, height_std_m=std_m),
+            lambda fix: sphere_size_ratio(center_px, diameter_px, fix, self.tri.camera, self.checks.buoy_diameter_m),
+        )
+
+    def _on_detection(
+        self,
+        t_s: float,
+        triangulate: Callable[[VehicleStateNed, float, float], SeaPlaneFix | None],
+        size_ratio: Callable[[SeaPlaneFix], float],
+    ) -> bool:
         self.on_frame(t_s)
         c = self.checks
         height = self.height_at(t_s)
@@ -270,12 +320,11 @@ class PickupEstimates:
         if state is None:
             return self._reject("no_state")
         # the sea under the object differs from the height used by up to the waves: σ ≈ half that, along the ray
-        fix = self.tri.fix_marker(t_s, corners_px, state, height_m, height_std_m=height_uncertainty_m / 2.0)
+        fix = triangulate(state, height_m, height_uncertainty_m / 2.0)
         if fix is None:
             return self._reject("no_ray")
-        ratio = apparent_size_ratio(corners_px, fix, self.tri.camera, size_m if size_m is not None else c.marker_size_m)
         tolerance = c.size_tolerance + height_uncertainty_m / max(fix.camera_height_m, 0.1)
-        if not abs(ratio - 1.0) <= tolerance:
+        if not abs(size_ratio(fix) - 1.0) <= tolerance:
             return self._reject("size")
         obs = fix.observation
         n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]

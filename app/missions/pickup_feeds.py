@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.clock import Clock
+from app.messages import PixelDetection
 from app.missions.pickup import PickupEstimates, RadarCalibrator
 from app.queues import LatestQueue
 from app.sensors.camera import CameraError, CameraSource
@@ -27,12 +28,24 @@ QUEUE_SIZE = 4
 
 
 @dataclass(frozen=True, slots=True)
-class MarkerObservation:
-    """One processed camera frame: the marker's 4 raw corner pixels, or ``None`` when none was found."""
+class CameraObservation:
+    """One processed camera frame: a marker's 4 raw corner pixels, or a buoy's centre and diameter (raw pixels),
+    or neither when nothing was found."""
 
     t_s: float  # capture time (loop clock)
-    corners_px: tuple[tuple[float, float], ...] | None
+    corners_px: tuple[tuple[float, float], ...] | None = None
     size_m: float | None = None  # the physical edge of the marker seen (a nested one near touchdown); None: outer
+    center_px: tuple[float, float] | None = None  # a buoy's centre …
+    diameter_px: float | None = None  # … and its diameter on the image
+
+    @classmethod
+    def of(cls, t_s: float, det: PixelDetection | None) -> CameraObservation:
+        """What the camera task hands on from one detector result."""
+        if det is None:
+            return cls(t_s)
+        if det.corners_px:
+            return cls(t_s, det.corners_px, det.size_m)
+        return cls(t_s, center_px=det.center_px, diameter_px=det.size_px)
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,7 +58,7 @@ class HeightSample:
 
 class PickupFeeds:
     def __init__(self, maxsize: int = QUEUE_SIZE, model: PickupEstimates | None = None) -> None:
-        self.frames: LatestQueue[MarkerObservation] = LatestQueue(maxsize)
+        self.frames: LatestQueue[CameraObservation] = LatestQueue(maxsize)
         self.heights: LatestQueue[HeightSample] = LatestQueue(maxsize)
         self.model = model
 
@@ -57,10 +70,12 @@ class PickupFeeds:
     async def consume_frames(self, model: PickupEstimates) -> None:
         while True:
             obs = await self.frames.get()
-            if obs.corners_px is None:
-                model.on_frame(obs.t_s)
-            else:
+            if obs.corners_px is not None:
                 model.on_marker(obs.t_s, obs.corners_px, obs.size_m)
+            elif obs.center_px is not None and obs.diameter_px is not None:
+                model.on_buoy(obs.t_s, obs.center_px, obs.diameter_px)
+            else:
+                model.on_frame(obs.t_s)
 
     async def consume_heights(self, model: PickupEstimates) -> None:
         while True:
@@ -108,11 +123,10 @@ def camera_producer(
                 await clock.sleep(0.5)
         try:
             while True:
-                det = await asyncio.to_thread(detector.detect, frame.image, frame.t_s)
-                if det is None or not det.corners_px:
-                    feeds.frames.put(MarkerObservation(frame.t_s, None))
-                else:
-                    feeds.frames.put(MarkerObservation(frame.t_s, det.corners_px, det.size_m))
+                # the buoy detector sizes its search from the height (a marker's decoding needs none)
+                height_m = feeds.model.latest_height_m() if feeds.model is not None else None
+                det = await asyncio.to_thread(detector.detect, frame.image, frame.t_s, None, height_m)
+                feeds.frames.put(CameraObservation.of(frame.t_s, det))
                 frame = await camera.next_frame()
         finally:
             await camera.__aexit__(None, None, None)

@@ -52,8 +52,9 @@ async def fly_over(vehicle: InProcessVehicle, altitude_m: float) -> None:
     raise AssertionError("no takeoff")
 
 
-async def sensors(vehicle, sea, obj, est, seconds, *, clutter=None, rng=None):
-    """15 Hz camera frames and radar heights from the truth, handed over with their measurement time."""
+async def sensors(vehicle, sea, obj, est, seconds, *, clutter=None, rng=None, buoy_m=None):
+    """15 Hz camera frames and radar heights from the truth, handed over with their measurement time. With
+    ``buoy_m`` the object is a buoy of that diameter: detections are (centre, diameter) in pixels."""
     camera = GeometricCamera(CAM, marker_size_m=0.30, pixel_noise_std_px=0.5, seed=3)
     rng = rng or np.random.default_rng(4)
     errors = []
@@ -69,13 +70,18 @@ async def sensors(vehicle, sea, obj, est, seconds, *, clutter=None, rng=None):
         est.on_height(t_s, sea_down - truth.pos_ned_m[2] + rng.normal(0.0, 0.02))
         f = camera.frame(t_s, truth.pos_ned_m, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, o.pos_ned_m)
         seen = [f.corners_px] if f.visible else []
+        if buoy_m is not None:
+            seen = [_disc(camera, truth, t_s, o.pos_ned_m, buoy_m, rng)] if f.visible else []
         if clutter is not None:
             seen += clutter(t_s, truth, camera, rng)
         pending.append((t_s, seen))
         await asyncio.sleep(LATENCY_S)
         t_capture_s, detections = pending.pop(0)
-        for corners in detections:
-            est.on_marker(t_capture_s, corners)
+        for d in detections:
+            if isinstance(d, tuple):
+                est.on_buoy(t_capture_s, *d)
+            else:
+                est.on_marker(t_capture_s, d)
         now_s = loop.time()
         snap = est.snapshot(now_s)
         if snap.target is not None:
@@ -84,7 +90,17 @@ async def sensors(vehicle, sea, obj, est, seconds, *, clutter=None, rng=None):
     return errors
 
 
-async def run_scenario(seconds=8.0, altitude_m=10.0, clutter=None):
+def _disc(camera, truth, t_s, centre_ned, diameter_m, rng):
+    """A round object of ``diameter_m`` on the sea as the buoy detector reports it: centre (1 px noise), diameter."""
+    f = camera.frame(
+        t_s, truth.pos_ned_m, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, centre_ned, marker_size_m=diameter_m
+    )
+    c = f.corners_true_px
+    u, v = f.centre_true_px + rng.normal(0.0, 1.0, 2)
+    return (float(u), float(v)), float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+
+
+async def run_scenario(seconds=8.0, altitude_m=10.0, clutter=None, buoy_m=None):
     vehicle = InProcessVehicle(seed=1, wind=WindConfig.off(), estimator=PERFECT)
     sea, obj = world()
     est = model()
@@ -92,7 +108,7 @@ async def run_scenario(seconds=8.0, altitude_m=10.0, clutter=None):
     task = asyncio.create_task(vehicle.run())
     try:
         await fly_over(vehicle, altitude_m)
-        errors = await sensors(vehicle, sea, obj, est, seconds, clutter=clutter)
+        errors = await sensors(vehicle, sea, obj, est, seconds, clutter=clutter, buoy_m=buoy_m)
     finally:
         task.cancel()
         with contextlib.suppress(asyncio.CancelledError):
@@ -188,3 +204,39 @@ def test_the_mean_sea_leaves_the_swell_out_and_follows_the_altitude_estimates_dr
           f"{abs(np.mean(mean_err)):.3f} m")  # fmt: skip
     assert np.ptp(swing) / 2 > 0.24
     assert np.ptp(mean_err) / 2 < 0.06 and abs(np.mean(mean_err)) < 0.03
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_a_buoy_is_fixed_from_its_centre_and_a_round_float_twice_its_size_never_is():
+    """The object is a 0.15 m buoy (the default ``buoy_diameter_m``); a 0.30 m round float drifts 3 m away, as
+    bright and as round: only its size on the image, at the radar's height, tells it apart."""
+
+    def big_float(t_s, truth, camera, rng):
+        f = camera.frame(t_s, truth.pos_ned_m, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, (3.0, 2.0, 0.0))
+        return [_disc(camera, truth, t_s, (3.0, 2.0, 0.0), 0.30, rng)] if f.visible else []
+
+    est, errors = await run_scenario(clutter=big_float, buoy_m=FixChecks().buoy_diameter_m)
+    tail = sorted(errors[len(errors) // 2 :])
+    p95 = tail[int(0.95 * (len(tail) - 1))]
+    print(f"{est.fixes} fixes, rejected {dict(est.rejected)}; error p95 (2nd half) {p95:.3f} m")
+    assert est.rejected["size"] >= 55 and est.fixes > 50  # the float in (nearly) every frame; the buoy's fixes
+    assert p95 <= 0.10 and max(tail) <= 0.2  # on the buoy, not on the float
+
+
+def test_the_sphere_size_ratio_is_one_for_the_buoy_from_any_height_and_place_on_the_image():
+    camera = GeometricCamera(CAM, marker_size_m=0.15, pixel_noise_std_px=0.0)
+    tri = SeaPlaneTriangulator.from_settings(CAM)
+    from app.messages import VehicleStateNed
+    from app.missions.pickup import sphere_size_ratio
+
+    for height_m, (n_m, e_m) in [(10.0, (0.0, 0.0)), (10.0, (2.5, 3.0)), (3.0, (0.6, -0.8)), (1.0, (0.1, 0.1))]:
+        f = camera.frame(0.0, (0.0, 0.0, -height_m), 0.0, 0.0, 0.0, (n_m, e_m, 0.0))
+        assert f.visible
+        c = f.corners_true_px
+        diameter_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+        state = VehicleStateNed(0.0, (0.0, 0.0, -height_m), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+        fix = tri.fix_pixel(0.0, f.centre_true_px, state, height_m)
+        ratio = sphere_size_ratio(tuple(f.centre_true_px), diameter_px, fix, tri.camera, 0.15)
+        # a level disc's outline off-centre is a little smaller than a sphere's: √cos θ of it
+        assert ratio == pytest.approx(math.sqrt(math.cos(fix.off_vertical_rad)), abs=0.02), (height_m, n_m, e_m)
+        assert sphere_size_ratio(tuple(f.centre_true_px), 2 * diameter_px, fix, tri.camera, 0.15) > 1.8
