@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 RUN_DIR ?= runs/demo
 
-.PHONY: setup demo circle test lint eval bench clean
+.PHONY: setup demo circle test lint eval bench clean mosquitto
 
 $(STAMP): pyproject.toml
 	@# A bare Debian has python3 but may lack venv/ensurepip: install it with apt-get (as root or via sudo).
@@ -18,6 +18,17 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
+mosquitto:  ## the MQTT broker, its clients (mosquitto_pub/sub) and openssl (the test CA) for the ground-station tests
+	@# Debian puts the broker in /usr/sbin, off a normal user's PATH: look there too. Same apt-get/sudo as above.
+	@missing=""; \
+	  { command -v mosquitto || [ -x /usr/sbin/mosquitto ]; } >/dev/null 2>&1 || missing="mosquitto"; \
+	  command -v mosquitto_pub >/dev/null 2>&1 || missing="$$missing mosquitto-clients"; \
+	  command -v openssl >/dev/null 2>&1 || missing="$$missing openssl"; \
+	  if [ -n "$$missing" ]; then \
+	    SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	    $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $$missing; \
+	  fi
+
 demo: $(STAMP)   ## fly the default simulated mission (the pickup, sea state 2) and print its summary
 	$(BIN)/python -m app.main --mission pickup.yaml --sim --seed 1 --run-dir $(RUN_DIR); \
 	  status=$$?; cat $(RUN_DIR)/summary.json; echo "report: $(RUN_DIR)/report.png"; exit $$status
@@ -26,7 +37,7 @@ circle: $(STAMP)  ## the circle-tracking mission (thesis §5.2)
 	$(BIN)/python -m app.main --mission circle.yaml --sim --run-dir runs/circle
 	@cat runs/circle/summary.json
 
-test: $(STAMP)   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
+test: $(STAMP) mosquitto   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
 	$(BIN)/python -m pytest -q
 
 eval: $(STAMP)   ## target filters against ground truth, sea states 0–4
