@@ -6,7 +6,8 @@ writes it. Nothing is dropped: when the queue is full (the disk stalls for secon
 room — the setpoint watchdog, a thread of its own, keeps the vehicle safe meanwhile. The file is flushed
 after every ``state`` and ``run`` record and whenever the queue runs empty, and ``close`` writes everything
 still queued before it returns, so a clean exit loses nothing and a crash loses at most the records of
-the last moments. ``write`` may be called from any thread (the watchdog logs through it).
+the last moments. ``write`` may be called from any thread (the watchdog logs through it). ``subscribe``
+hands the records of some kinds to a listener as they are written (the ground station's events).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import json
 import math
 import queue
 import threading
+from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import IO, Any
 
@@ -42,16 +44,29 @@ class EventLog:
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_size)
         self._file: IO[str] | None = path.open("a", buffering=1 << 16) if path else None
         self._thread: threading.Thread | None = None
+        self._listeners: tuple[tuple[frozenset[str], Callable[[dict[str, Any]], None]], ...] = ()
         if self._file is not None:
             self._thread = threading.Thread(target=self._writer, name="eventlog.writer", daemon=True)
             self._thread.start()
 
+    def subscribe(self, kinds: Collection[str], listener: Callable[[dict[str, Any]], None]) -> None:
+        """Hand every record of ``kinds`` to ``listener`` as it is written, on the thread that writes it (a listener
+        must be quick and must not write to this log)."""
+        with self._lock:
+            self._listeners = (*self._listeners, (frozenset(kinds), listener))
+
     def write(self, t_s: float, kind: str, **fields: Any) -> None:
         with self._lock:
             self.counts[kind] = self.counts.get(kind, 0) + 1
-        if self._thread is None:
+            listeners = self._listeners
+        if self._thread is None and not listeners:
             return
-        self._queue.put({"t_s": round(t_s, 4), "kind": kind, **_clean(fields)})
+        record = {"t_s": round(t_s, 4), "kind": kind, **_clean(fields)}
+        for kinds, listener in listeners:
+            if kind in kinds:
+                listener(record)
+        if self._thread is not None:
+            self._queue.put(record)
 
     def total(self) -> int:
         """Records written so far (all kinds)."""

@@ -21,7 +21,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Callable, Coroutine, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,8 @@ from app.estimators.factory import make_target_filter
 from app.estimators.sea_state import SEA_STATES
 from app.estimators.triangulation import SeaPlaneTriangulator
 from app.eventlog import EventLog
+from app.gcs.config import GcsSettings
+from app.gcs.mission import MissionBridge
 from app.messages import Autopilot
 from app.missions.estimates import MissionModel
 from app.missions.pickup import FixChecks, PickupEstimates
@@ -47,6 +49,7 @@ from app.report import render_report
 from app.settings import Settings, load_settings
 
 SIM_PILOT_PORT = 14580
+VEHICLE_ID = "drone1"  # the ground station's topic tree, seapick/<vehicle id>/v1/…, when none is given
 SPEED = number(0.0, 30.0, "m/s")
 UDP_PORT = number(0, 65535, "(UDP port)", int)
 
@@ -62,6 +65,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--connect", default=None, help="MAVSDK URL, e.g. udpin://0.0.0.0:14540 (PX4 SITL)")
     p.add_argument("--seed", type=int, default=1, help="seed for the simulator (wind gusts)")
     p.add_argument("--run-dir", type=Path, default=None, help="where summary.json and events.jsonl go")
+    p.add_argument(
+        "--mqtt",
+        default=None,
+        metavar="URL",
+        help="ground station broker, mqtt://host[:port] or mqtts://…: the mission waits for its start command "
+        "(default: the settings' gcs section; none: it starts by itself)",
+    )
+    p.add_argument("--vehicle-id", default=None, help=f"topic tree seapick/<id>/v1/… (default {VEHICLE_ID})")
     sim = p.add_argument_group("simulator (with --sim)")
     sim.add_argument("--wind-mps", type=SPEED, default=None, help="mean wind speed, m/s (sim default 5)")
     sim.add_argument("--gust-mps", type=SPEED, default=None, help="gust standard deviation, m/s (sim default 1)")
@@ -93,6 +104,21 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.sim and args.connect:
         p.error("--sim and --connect exclude each other")
     return args
+
+
+def ground_settings(settings: Settings, args: argparse.Namespace) -> GcsSettings | None:
+    """The ground station's link: the settings' ``gcs`` section, ``--mqtt`` / ``--vehicle-id`` over it."""
+    section = dict(settings.gcs or {})
+    if args.mqtt is not None:
+        section["broker_url"] = args.mqtt
+    if args.vehicle_id is not None:
+        section["vehicle_id"] = args.vehicle_id
+    if not section.get("broker_url"):
+        if args.vehicle_id is not None:
+            raise ConfigError("--vehicle-id", "", "needs a broker (--mqtt or the settings' gcs section)")
+        return None
+    section.setdefault("vehicle_id", VEHICLE_ID)
+    return GcsSettings.from_mapping(section, "gcs", "--mqtt" if args.mqtt is not None else "settings")
 
 
 def free_udp_port() -> int:
@@ -232,6 +258,7 @@ async def fly_mission(
     events: EventLog,
     on_start: Callable[[MissionRunner], None] | None = None,
     sensors: Sequence[Callable[[PickupFeeds], Coroutine[Any, Any, None]]] = (),
+    ground: GcsSettings | None = None,
 ) -> Flight:
     """Run one mission on a connected vehicle; always ends with a safe exit.
 
@@ -239,9 +266,11 @@ async def fly_mission(
     (zero velocity, then HOLD, if we still own offboard) runs on the way out — shielded, bounded.
     ``on_start(runner)`` is called once the runner exists (fault injection, the ground station).
     ``sensors`` produce into the pickup's queues (``PickupFeeds``): the camera and radar tasks, or the
-    simulator's in-process sensors.
+    simulator's in-process sensors. With ``ground`` the ground station's link runs alongside (``app.gcs.mission``):
+    the mission waits for its start, takes its commands and reports to it.
     """
     boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
+    bridge = MissionBridge(ground, runner, clock, events) if ground is not None else None
     feeds = PickupFeeds(model=runner.mission if isinstance(runner.mission, PickupEstimates) else None)
     if on_start is not None:
         on_start(runner)
@@ -267,6 +296,8 @@ async def fly_mission(
             streams = tg.create_task(vehicle.run(), name="vehicle.telemetry")
             loop_task = tg.create_task(setpoints.run(), name="offboard.setpoints")
             sensor_tasks: list[asyncio.Task[None]] = []
+            if bridge is not None:
+                sensor_tasks.append(tg.create_task(bridge.run(), name="gcs"))
             if isinstance(runner.mission, PickupEstimates):
                 vehicle.add_sample_listener(runner.mission.on_vehicle_sample)
                 sensor_tasks += [
@@ -282,6 +313,8 @@ async def fly_mission(
             finally:
                 try:
                     await boundary.release("safe exit")
+                    if bridge is not None:
+                        await bridge.finish()  # the outcome and the last events to the ground station
                 finally:
                     loop_task.cancel()
                     streams.cancel()
@@ -303,7 +336,9 @@ async def fly_mission(
         clock.now_s() - t_start_s,
         vehicle.autopilot.value,
         setpoints.sent,
-        runner.mission.summary() | (feeds.summary() if isinstance(runner.mission, PickupEstimates) else {}),
+        runner.mission.summary()
+        | (feeds.summary() if isinstance(runner.mission, PickupEstimates) else {})
+        | ({"gcs": asdict(bridge.link.counters)} if bridge is not None else {}),
         timing,
         safety,
     )
@@ -346,6 +381,7 @@ async def connect_and_fly(
     events: EventLog,
     run_dir: Path,
     sim_sensors: SimSensors | None = None,
+    ground: GcsSettings | None = None,
 ) -> Flight:
     from app.offboard.mavsdk_vehicle import MavsdkVehicle, route_mavsdk_log  # loads the native library
 
@@ -353,7 +389,7 @@ async def connect_and_fly(
     clock = LoopClock()
     sensors = pickup_sensors(settings, clock, sim_sensors) if model_name(table) == "pickup" else []
     async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
-        return await fly_mission(vehicle, table, settings, clock, events, sensors=sensors)
+        return await fly_mission(vehicle, table, settings, clock, events, sensors=sensors, ground=ground)
 
 
 def pickup_sensors(settings: Settings, clock: Clock, sim: SimSensors | None) -> list[Producer]:
@@ -412,6 +448,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         settings = load_settings(args.settings)
         table = load_mission(args.mission)
+        ground = ground_settings(settings, args)
         if args.sim and args.object == "buoy":  # the simulated object is a buoy: look for one
             settings = settings.model_copy(update={"detector": settings.detector.model_copy(update={"kind": "buoy"})})
     except ConfigError as e:
@@ -444,7 +481,7 @@ def main(argv: list[str] | None = None) -> int:
         "started_utc": stamp,
     }
     try:
-        flight = asyncio.run(connect_and_fly(url, table, settings, events, run_dir, sim_sensors))
+        flight = asyncio.run(connect_and_fly(url, table, settings, events, run_dir, sim_sensors, ground))
         summary.update(
             outcome=flight.result.outcome,
             reason=flight.result.reason,

@@ -275,6 +275,9 @@ class Settings(_Model):
     detector: DetectorSettings = DetectorSettings()
     radar: RadarSettings = RadarSettings()
     radar_altitude: RadarAltitudeSettings = RadarAltitudeSettings()
+    # the ground station over MQTT (``app.gcs.config.GcsSettings`` validates it); None: no ground station, the
+    # mission starts by itself
+    gcs: dict[str, Any] | None = None
 
 
 def format_validation_error(source: str, exc: ValidationError, model: type[BaseModel]) -> ConfigError:
@@ -392,4 +395,9 @@ def load_yaml(path: Path) -> dict[str, Any]:
 def load_settings(path: Path | None = None) -> Settings:
     """Load a settings profile; ``None`` loads ``settings/default.yaml``."""
     path = path or SETTINGS_DIR / "default.yaml"
-    return validate_section(Settings, load_yaml(path), str(path))
+    settings = validate_section(Settings, load_yaml(path), str(path))
+    if settings.gcs is not None:
+        from app.gcs.config import GcsSettings  # it builds on this module
+
+        GcsSettings.from_mapping(settings.gcs, "gcs", str(path))  # a bad section fails here, naming its field
+    return settings

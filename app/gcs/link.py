@@ -108,6 +108,7 @@ class GroundLink:
         self._connected = asyncio.Event()
         self._failures = 0
         self._session_wiped = False
+        self._sending = False  # an event is being published
 
     # ---- what the app calls ---------------------------------------------------------------------------
 
@@ -142,6 +143,16 @@ class GroundLink:
     def publish_event(self, event: Event) -> None:
         """Queued (bounded: the oldest is dropped when full) and sent in order, also after a reconnect."""
         self._events.put(event)
+
+    async def flush(self, timeout_s: float) -> bool:
+        """Wait until the latest state and every queued event have gone out (at most ``timeout_s``); True if so."""
+        deadline_s = self._clock.now_s() + timeout_s
+        while True:
+            if self.connected and self._state_sent == self._state and not self._events.qsize() and not self._sending:
+                return True
+            if self._clock.now_s() >= deadline_s:
+                return False
+            await self._clock.sleep(0.02)
 
     # ---- commands: pure, no I/O -----------------------------------------------------------------------
 
@@ -272,9 +283,12 @@ class GroundLink:
     async def _send_events(self, client: aiomqtt.Client) -> None:
         while True:
             event = await self._events.get()
+            self._sending = True
             try:
                 await client.publish(self.topics.events, encode(event), qos=1)
             except aiomqtt.MqttError:
                 self._counts["events_dropped"] += 1
                 raise
+            finally:
+                self._sending = False
             self._counts["events_sent"] += 1

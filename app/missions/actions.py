@@ -132,9 +132,10 @@ async def _reach_height(io: MissionIO, height_m: float) -> None:
 
 
 async def goto_search(io: MissionIO) -> None:
-    """Fly to the search centre at the search height (above home)."""
+    """Fly to the search centre (``search_start_ne_m``: the ground station's start may move it) at the search
+    height (above home)."""
     m, p = _pickup(io), io.params
-    n, e = m.search_centre_ne_m
+    m.search_centre_ne_m = n, e = p.search_start_ne_m
     io.setpoints.engage(FixedPoint("search_start", (n, e, -p.search_altitude_m)))
 
 

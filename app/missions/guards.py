@@ -31,6 +31,7 @@ class GuardContext:
     estimates: Estimates  # frozen for this tick by the mission (never a live object)
     abort_requested: bool
     start_given: bool = True  # the ground station said start (True when there is none)
+    land_authorized: bool = True  # the operator authorised the landing (True when none is needed)
 
 
 Guard = Callable[[GuardContext], bool]
@@ -120,12 +121,13 @@ def above_object(ctx: GuardContext) -> bool:
 
 
 def ready_to_descend(ctx: GuardContext) -> bool:
-    """Fresh fix, converged for long enough, right above the object."""
+    """Fresh fix, converged for long enough, right above the object — and the landing authorised, when the
+    mission asks for an operator's authorisation."""
     e, p = ctx.estimates, ctx.params
     t = e.target
     d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
     converged = e.converged_for_s is not None and e.converged_for_s >= p.descend_converged_s
-    return _fresh(ctx) and converged and d is not None and d <= p.track_radius_m
+    return ctx.land_authorized and _fresh(ctx) and converged and d is not None and d <= p.track_radius_m
 
 
 def target_lost(ctx: GuardContext) -> bool:

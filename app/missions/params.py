@@ -70,6 +70,9 @@ class MissionParams(BaseModel):
     final_radius_m: float = Field(
         0.1, ge=0.01, le=5.0, description="… within this of the estimate (else wait at that height), m"
     )
+    land_authorization: bool = Field(
+        False, description="descend onto the object only after an operator's authorize_land (thesis), true/false"
+    )
     touchdown_height_m: float = Field(0.3, ge=0.05, le=2.0, description="radar height that counts as touchdown, m")
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
     size_tolerance: float = Field(

@@ -18,12 +18,19 @@ abort. Each tick, in order:
 
 A command the vehicle refuses sends the mission to ABORT. An abort request (signal, ground station) enters
 ABORT at once from any state, preempting whatever runs; from then on only ABORT's own stop goes out.
+
+A ground station (``app.gcs.mission``) starts the mission (``request_start``: the initial state waits for
+it when one is configured), asks for ``abort``/``hold``/``resume``/``rtl`` (``request``) and authorises the
+landing (``authorize_land``, when ``params.land_authorization``). Each answers None or why not, and a
+refused request changes nothing; a pilot who has control refuses them all.
 """
 
 from __future__ import annotations
 
 import asyncio
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+
+from pydantic import ValidationError
 
 from app.clock import Clock, sleep_until
 from app.errors import CommandRefused, VehicleError
@@ -32,7 +39,7 @@ from app.messages import Autopilot
 from app.missions.actions import ACTIONS
 from app.missions.circle import CircleMission
 from app.missions.estimates import MissionModel, NoEstimates
-from app.missions.guards import GUARDS, GuardContext
+from app.missions.guards import GUARDS, GuardContext, ready_to_descend
 from app.missions.params import MissionParams
 from app.missions.table import SUCCESS, MissionTable, StateSpec
 from app.offboard.boundary import VehicleBoundary
@@ -101,6 +108,8 @@ class MissionRunner:
         self._abort_requested = False
         self._abort_reason = ""
         self.start_given = True  # a ground station clears this and sets it on its start command
+        self.land_authorized = False  # an operator's authorize_land (needed when params.land_authorization)
+        self._awaiting_authorization_noted = False
         self._result: RunResult | None = None
         self._tg: asyncio.TaskGroup | None = None
         self._entry: asyncio.Task[None] | None = None
@@ -124,16 +133,61 @@ class MissionRunner:
         if self._tg is not None and self._result is None and not self.table.states[self.state].abort:
             self._enter(self.table.abort_state, f"abort requested ({reason})")
 
-    def request(self, command: str) -> str | None:
-        """A ground station's request — ``hold``, ``resume`` or ``rtl`` — on the loop's thread; None when it is
-        carried out, else why not (nothing changes then). A pilot who has control, or an ABORT, wins."""
-        if self._tg is None or self._result is not None:
-            return "the mission is not running"
+    def request_start(self, **param_updates: object) -> str | None:
+        """A ground station's start, with optional parameter changes (e.g. ``search_start_ne_m``); None when
+        taken, else why not (nothing changes then). Only while waiting in the initial state."""
+        if (refusal := self._refusal()) is not None:
+            return refusal
+        if self.start_given or self.state != self.table.initial:
+            return f"already started ({self.state})"
+        if param_updates:
+            try:
+                params = type(self.params).model_validate(self.params.model_dump() | param_updates)
+            except ValidationError as e:
+                err = e.errors()[0]
+                return f"{'.'.join(str(x) for x in err['loc'])}: {err['msg']}"
+            self.params = params
+        self.start_given = True
+        self._events.write(self._clock.now_s(), "run", event="start_given", **param_updates)
+        return None
+
+    def authorize_land(self) -> str | None:
+        """An operator's landing authorisation: from now on DESCEND may follow TRACK. None when taken."""
+        if (refusal := self._refusal()) is not None:
+            return refusal
+        if not self.params.land_authorization:
+            return f"the mission {self.table.mission} lands without authorisation"
+        if self.land_authorized:
+            return "landing is already authorised"
+        self.land_authorized = True
+        self._events.write(self._clock.now_s(), "run", event="land_authorized", state=self.state)
+        return None
+
+    def _refusal(self) -> str | None:
+        """Why no ground-station request can be taken now, or None. The freshest flight mode is judged first: a
+        pilot's switch that arrived with the request wins over it."""
+        if self._result is not None:
+            ended = self.table.states[self.state]
+            return "the mission is aborting" if ended.abort else f"the mission has ended ({self._result.outcome})"
+        if self._tg is None:
+            return "the mission is not running yet"
+        self.boundary.check_takeover()
         spec = self.table.states[self.state]
         if self.pilot_has_control or spec.manual:
             return "the pilot has control"
         if spec.abort or self._abort_requested:
             return "the mission is aborting"
+        return None
+
+    def request(self, command: str) -> str | None:
+        """A ground station's request — ``abort``, ``hold``, ``resume`` or ``rtl`` — on the loop's thread; None
+        when it is carried out, else why not (nothing changes then). A pilot who has control, or an ABORT, wins."""
+        if (refusal := self._refusal()) is not None:
+            return refusal
+        spec = self.table.states[self.state]
+        if command == "abort":
+            self.request_abort("ground station")
+            return None
         if command == "resume":
             if self.state != self.table.requests.get("hold"):
                 return f"nothing to resume in {self.state}"
@@ -195,7 +249,10 @@ class MissionRunner:
             estimates=self.mission.snapshot(now_s),
             abort_requested=self._abort_requested,
             start_given=self.start_given,
+            land_authorized=self.land_authorized or not self.params.land_authorization,
         )
+        if not ctx.land_authorized:
+            self._note_awaiting_authorization(ctx, spec)
         for t in spec.transitions:
             if GUARDS[t.when](ctx):
                 why = f"abort requested ({self._abort_reason})" if t.when == "abort_requested" else t.when
@@ -203,6 +260,15 @@ class MissionRunner:
                 return
         if spec.timeout_s is not None and spec.on_timeout and now_s - self._entry_t_s >= spec.timeout_s:
             self._enter(spec.on_timeout, f"timeout {spec.timeout_s:g} s in {self.state}")
+
+    def _note_awaiting_authorization(self, ctx: GuardContext, spec: StateSpec) -> None:
+        """Say once per state when only the operator's authorisation holds the descent back."""
+        if self._awaiting_authorization_noted:
+            return
+        authorized = replace(ctx, land_authorized=True)
+        if any(GUARDS[t.when] is ready_to_descend and ready_to_descend(authorized) for t in spec.transitions):
+            self._awaiting_authorization_noted = True
+            self._events.write(ctx.t_s, "run", event="awaiting_land_authorization", state=self.state)
 
     def _take_over(self, takeover: Takeover) -> None:
         """The boundary saw someone else switch the mode (from any task): MANUAL now."""
@@ -235,6 +301,7 @@ class MissionRunner:
             entry.cancel()
         self.state = name
         self._entry_t_s = now_s
+        self._awaiting_authorization_noted = False
         self.states_visited.append(name)
         spec = self.table.states[name]
         self.boundary.flying = spec.flying
