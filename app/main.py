@@ -1,54 +1,43 @@
-"""``python -m app.main --mission circle.yaml [--sim] [--connect URL] [--seed N] [--run-dir DIR]``
+"""``python -m app.main --mission pickup.yaml [--sim] [--connect URL] [--mqtt URL] [--seed N] [--run-dir DIR]``
 
-Composition root: load settings and the mission table (both validated before anything connects), build
-the adapters, run everything in one TaskGroup, and leave a run directory with ``summary.json`` and
-``events.jsonl``. ``--sim`` starts the simulated PX4 autopilot (``python -m sim.autopilot``) as a separate
-process and connects MAVSDK to it over real UDP. Exit code 0 when the mission completed; otherwise 1 with
-a one-line reason (2 for invalid input).
+Composition root: load settings and the mission table (both validated before anything connects), connect
+MAVSDK, build the sensors (the pickup's camera and radar: the simulator's or the real ones) and the ground
+station's link, fly the mission (``app.flight.fly_mission``: everything in one TaskGroup), and leave a run
+directory with ``summary.json``, ``events.jsonl`` and (pickup) ``report.png``. ``--sim`` starts the simulated
+autopilot (``python -m sim.autopilot``; for the pickup also the sea, the object, the camera and the radar) as
+a separate process and connects MAVSDK to it over real UDP. Exit code 0 when the mission completed; otherwise
+1 with a one-line reason (2 for invalid input).
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import datetime as dt
 import json
-import math
-import signal
+import os
 import socket
 import subprocess
 import sys
 import tempfile
-from collections.abc import Callable, Coroutine, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from app.cli import OneLineParser, number, run_cli
-from app.clock import Clock, LoopClock
+from app.clock import Clock, PreciseClock
 from app.errors import AppError, ConfigError
-from app.estimators.factory import make_target_filter
-from app.estimators.sea_state import SEA_STATES
-from app.estimators.triangulation import SeaPlaneTriangulator
 from app.eventlog import EventLog
+from app.flight import Flight, fly_mission
 from app.gcs.config import GcsSettings
-from app.gcs.mission import MissionBridge
-from app.messages import Autopilot
-from app.missions.estimates import MissionModel
-from app.missions.pickup import FixChecks, PickupEstimates
-from app.missions.pickup_feeds import PickupFeeds, Producer, camera_producer, radar_producer, radar_task_for
-from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
+from app.missions.pickup_feeds import Producer, camera_producer, radar_producer, radar_task_for
+from app.missions.runner import model_name
 from app.missions.table import SUCCESS, MissionTable, load_mission
-from app.offboard.boundary import BoundaryParams, VehicleBoundary
-from app.offboard.envelope import EnvelopeLimits
-from app.offboard.guidance import ConstantBearingParams
-from app.offboard.setpoint_loop import SetpointLoop
-from app.offboard.vehicle import Vehicle
 from app.report import render_report
 from app.settings import Settings, load_settings
 
 SIM_PILOT_PORT = 14580
+SIM_NICE = 5  # the simulator's niceness above the app's
 VEHICLE_ID = "drone1"  # the ground station's topic tree, seapick/<vehicle id>/v1/…, when none is given
 SPEED = number(0.0, 30.0, "m/s")
 UDP_PORT = number(0, 65535, "(UDP port)", int)
@@ -121,6 +110,10 @@ def ground_settings(settings: Settings, args: argparse.Namespace) -> GcsSettings
     return GcsSettings.from_mapping(section, "gcs", "--mqtt" if args.mqtt is not None else "settings")
 
 
+def _lower_priority() -> None:
+    os.nice(SIM_NICE)
+
+
 def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -164,214 +157,10 @@ def start_simulator(
         if args.settings is not None:
             cmd += ["--settings", str(args.settings)]
     log = (run_dir / "sim.log").open("wb")
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
+    # The simulator stands in for other hardware (the autopilot, the camera, the radar) that does not share the
+    # companion computer's CPU: it runs at a lower priority, so the app's setpoint loop is not queued behind it.
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_lower_priority)
     return proc, f"udpin://0.0.0.0:{port}"
-
-
-@dataclass
-class Flight:
-    result: RunResult
-    duration_s: float
-    autopilot: str
-    setpoints_sent: int
-    figures: dict[str, Any]  # the mission's own (circle: tracking error percentiles)
-    timing: dict[str, Any]  # telemetry latency and setpoint spacing: what a busy computer did to the run
-    safety: dict[str, Any]  # what the boundary refused, dropped or had to do (watchdog)
-
-
-def build_flight(
-    vehicle: Vehicle, table: MissionTable, settings: Settings, clock: Clock, events: EventLog
-) -> tuple[VehicleBoundary, SetpointLoop, MissionRunner]:
-    """The boundary, the setpoint loop and the runner for one mission on ``vehicle``."""
-    g, e = settings.guidance, settings.envelope
-    comp = g.ardupilot if vehicle.autopilot is Autopilot.ARDUPILOT else g.px4
-    boundary = VehicleBoundary(
-        vehicle,
-        clock,
-        events,
-        BoundaryParams(
-            limits=EnvelopeLimits(**e.model_dump()),
-            setpoint_period_s=1.0 / g.setpoint_rate_hz,
-            exit_zero_s=g.exit_zero_s,
-            exit_timeout_s=g.exit_timeout_s,
-            watchdog_timeout_s=g.watchdog_timeout_s,
-            position_stale_s=settings.telemetry.position_stale_s,
-        ),
-    )
-    setpoints = SetpointLoop(
-        boundary,
-        clock,
-        events,
-        ConstantBearingParams(
-            g.approach_speed_max_mps,
-            g.transient_distance_m,
-            g.velocity_lead_s,
-            comp.integral_gain_per_s2,
-            g.integral_max_mps,
-            g.integral_within_m,
-            comp.inconsistency_tau_s,
-            g.inconsistency_max_mps,
-            comp.velocity_error_gain,
-            g.velocity_error_max_mps,
-        ),
-        g.setpoint_rate_hz,
-        g.standby_rate_hz,
-        settings.telemetry.position_stale_s,
-    )
-    runner = MissionRunner(
-        table,
-        boundary,
-        setpoints,
-        clock,
-        events,
-        settings.runner.tick_rate_hz,
-        settings.runner.mode_confirm_timeout_s,
-        mission=build_mission_model(table, settings),
-    )
-    return boundary, setpoints, runner
-
-
-def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel:
-    """The mission's own model: the pickup's estimate chain is built from the camera settings and params."""
-    if model_name(table) != "pickup":
-        return mission_model_for(table)
-    p = table.params
-    checks = FixChecks(
-        marker_size_m=p.marker_size_m,
-        buoy_diameter_m=settings.detector.buoy_diameter_m,
-        size_tolerance=p.size_tolerance,
-        height_uncertainty_m=SEA_STATES[p.sea_state].hs_m / 2.0,  # the sea under the radar vs under the object
-        confirm_frames=p.confirm_frames,
-        converged_sigma_m=p.converged_sigma_m,
-    )
-    tri = SeaPlaneTriangulator.from_settings(
-        settings.camera, attitude_std_rad=math.radians(settings.camera.attitude_noise_std_deg)
-    )
-    return PickupEstimates(tri, make_target_filter(p), checks, search_centre_ne_m=p.search_start_ne_m)
-
-
-async def fly_mission(
-    vehicle: Vehicle,
-    table: MissionTable,
-    settings: Settings,
-    clock: Clock,
-    events: EventLog,
-    on_start: Callable[[MissionRunner], None] | None = None,
-    sensors: Sequence[Callable[[PickupFeeds], Coroutine[Any, Any, None]]] = (),
-    ground: GcsSettings | None = None,
-) -> Flight:
-    """Run one mission on a connected vehicle; always ends with a safe exit.
-
-    The first SIGINT/SIGTERM asks the mission to ABORT; a second one cancels the run, and the safe exit
-    (zero velocity, then HOLD, if we still own offboard) runs on the way out — shielded, bounded.
-    ``on_start(runner)`` is called once the runner exists (fault injection, the ground station).
-    ``sensors`` produce into the pickup's queues (``PickupFeeds``): the camera and radar tasks, or the
-    simulator's in-process sensors. With ``ground`` the ground station's link runs alongside (``app.gcs.mission``):
-    the mission waits for its start, takes its commands and reports to it.
-    """
-    boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
-    bridge = MissionBridge(ground, runner, clock, events) if ground is not None else None
-    feeds = PickupFeeds(model=runner.mission if isinstance(runner.mission, PickupEstimates) else None)
-    if on_start is not None:
-        on_start(runner)
-    loop = asyncio.get_running_loop()
-    main_task = asyncio.current_task()
-    signals_seen = 0
-
-    def on_signal(signame: str) -> None:
-        nonlocal signals_seen
-        signals_seen += 1
-        if signals_seen == 1:
-            runner.request_abort(signame)
-        elif main_task is not None:
-            events.write(clock.now_s(), "run", event="second_signal", signal=signame)
-            main_task.cancel()
-
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-            loop.add_signal_handler(sig, on_signal, sig.name)
-    t_start_s = clock.now_s()
-    try:
-        async with asyncio.TaskGroup() as tg:
-            streams = tg.create_task(vehicle.run(), name="vehicle.telemetry")
-            loop_task = tg.create_task(setpoints.run(), name="offboard.setpoints")
-            sensor_tasks: list[asyncio.Task[None]] = []
-            if bridge is not None:
-                sensor_tasks.append(tg.create_task(bridge.run(), name="gcs"))
-            if isinstance(runner.mission, PickupEstimates):
-                vehicle.add_sample_listener(runner.mission.on_vehicle_sample)
-                sensor_tasks += [
-                    tg.create_task(feeds.consume_frames(runner.mission), name="estimator.frames"),
-                    tg.create_task(feeds.consume_heights(runner.mission), name="estimator.heights"),
-                ]
-                sensor_tasks += [tg.create_task(s(feeds), name=f"sensors.{i}") for i, s in enumerate(sensors)]
-                sensor_tasks.append(tg.create_task(trace_pickup(runner, clock, events), name="pickup.trace"))
-            try:
-                await vehicle.wait_ready(settings.connection.ready_timeout_s)
-                events.write(clock.now_s(), "run", event="vehicle_ready", autopilot=vehicle.autopilot.value)
-                result = await runner.run()
-            finally:
-                try:
-                    await boundary.release("safe exit")
-                    if bridge is not None:
-                        await bridge.finish()  # the outcome and the last events to the ground station
-                finally:
-                    loop_task.cancel()
-                    streams.cancel()
-                    for t in sensor_tasks:
-                        t.cancel()
-    finally:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
-                loop.remove_signal_handler(sig)
-    timing = vehicle.link_stats() | setpoints.interval_summary()
-    safety = {
-        "non_finite_samples": boundary.non_finite_samples,
-        "setpoint_send_failures": boundary.send_failures_total,
-        "watchdog_fired": boundary.watchdog.fired_count,
-        "refused": dict(boundary.refused),
-    }
-    return Flight(
-        result,
-        clock.now_s() - t_start_s,
-        vehicle.autopilot.value,
-        setpoints.sent,
-        runner.mission.summary()
-        | (feeds.summary() if isinstance(runner.mission, PickupEstimates) else {})
-        | ({"gcs": asdict(bridge.link.counters)} if bridge is not None else {}),
-        timing,
-        safety,
-    )
-
-
-TRACE_PERIOD_S = 0.2
-
-
-async def trace_pickup(runner: MissionRunner, clock: Clock, events: EventLog) -> None:
-    """5 Hz ``pickup`` records for the report: the vehicle, the estimate, the height above the sea, the fix."""
-    model = runner.mission
-    assert isinstance(model, PickupEstimates)
-    while True:
-        await clock.sleep(TRACE_PERIOD_S)
-        t_s = clock.now_s()
-        pv = runner.boundary.telemetry().pos_vel
-        if pv is None:
-            continue
-        while model.fix_log:
-            t_fix_s, n_m, e_m, result = model.fix_log.popleft()
-            events.write(t_fix_s, "fix", ne_m=[round(n_m, 3), round(e_m, 3)], result=result)
-        snap = model.snapshot(t_s)
-        target = snap.target
-        events.write(
-            t_s,
-            "pickup",
-            state=runner.state,
-            vehicle_ne_m=[round(pv.pos_ned_m[0], 3), round(pv.pos_ned_m[1], 3)],
-            vehicle_down_m=round(pv.pos_ned_m[2], 3),
-            estimate_ne_m=None if target is None else [round(target.pos_ned_m[0], 3), round(target.pos_ned_m[1], 3)],
-            height_above_sea_m=None if snap.height_above_sea_m is None else round(snap.height_above_sea_m, 3),
-            fix_age_s=None if snap.fix_age_s is None else round(snap.fix_age_s, 3),
-        )
 
 
 async def connect_and_fly(
@@ -386,7 +175,7 @@ async def connect_and_fly(
     from app.offboard.mavsdk_vehicle import MavsdkVehicle, route_mavsdk_log  # loads the native library
 
     route_mavsdk_log(run_dir / "mavsdk.log")
-    clock = LoopClock()
+    clock = PreciseClock()  # real time: wakes on time (the 50 Hz setpoints), not up to 1 ms late
     sensors = pickup_sensors(settings, clock, sim_sensors) if model_name(table) == "pickup" else []
     async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
         return await fly_mission(vehicle, table, settings, clock, events, sensors=sensors, ground=ground)

@@ -102,6 +102,14 @@ class Stamped(Generic[T]):
 
 
 @dataclass(frozen=True, slots=True)
+class BatteryLevel:
+    """The autopilot's battery report: voltage and remaining charge (``None`` when it does not say)."""
+
+    voltage_v: float | None
+    remaining_frac: float | None
+
+
+@dataclass(frozen=True, slots=True)
 class TelemetrySnapshot:
     """The latest of every telemetry stream, each stamped; ``None`` until the first sample arrived.
 
@@ -115,6 +123,7 @@ class TelemetrySnapshot:
     landed_state: Stamped[LandedState] | None = None
     home_ned_m: Vec3 | None = None
     heartbeat_t_s: float | None = None
+    battery: Stamped[BatteryLevel] | None = None
 
     def mode(self) -> FlightMode:
         return self.flight_mode.value if self.flight_mode else FlightMode.UNKNOWN

@@ -3,7 +3,7 @@ from the vehicle's side.
 
     python -m sim.faults [--json] [--jobs N] [--only SUBSTRING] [--keep DIR]
 
-Every case flies the real ``app.main.fly_mission`` (one lap of the circle) against ``FaultyVehicle`` — the
+Every case flies the real ``app.flight.fly_mission`` (one lap of the circle) against ``FaultyVehicle`` — the
 in-process simulated autopilot with faults it can be told to show — on a looptime event loop, so a minute
 of flight takes about a second. When the mission enters the case's state (TAKEOFF, TRACK or LAND) the fault
 is injected; the run then goes on to its end and five more seconds of simulation. ``sim.safety_rules``
@@ -40,7 +40,7 @@ from app.cli import OneLineParser, run_cli
 from app.clock import LoopClock
 from app.errors import VehicleError
 from app.eventlog import EventLog
-from app.main import fly_mission
+from app.flight import fly_mission
 from app.messages import AttitudeEuler, FlightMode, PositionVelocityNed, TelemetrySnapshot, Vec3
 from app.missions.runner import MissionRunner
 from app.missions.table import MissionTable, load_mission

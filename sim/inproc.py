@@ -35,6 +35,7 @@ from app.errors import VehicleConnectionError, VehicleError
 from app.messages import (
     AttitudeEuler,
     Autopilot,
+    BatteryLevel,
     FlightMode,
     PositionVelocityNed,
     Stamped,
@@ -141,6 +142,7 @@ class InProcessVehicle:
             landed_state=Stamped(t_s, st.landed_state),
             home_ned_m=st.home_ned_m,
             heartbeat_t_s=t_s,
+            battery=Stamped(t_s, BatteryLevel(st.dyn.battery.voltage_v, st.dyn.battery.remaining_frac)),
         )
 
     def add_sample_listener(self, listener: SampleListener) -> None:

@@ -12,7 +12,8 @@
   they change (checked at the telemetry rate, and at once on every state change);
 - ``telemetry`` at ``telemetry_rate_hz``: position, height above the sea, the target estimate and covariance;
 - ``events``: the event log's ``state``, ``run``, ``gcs`` and ``vehicle`` records (state changes, start,
-  landing authorisation, commands, flight mode and link changes, the end), as they are written.
+  landing authorisation, commands, flight mode and link changes, the end), as they are written; and, from the
+  estimates at the telemetry rate, ``target_found`` / ``target_lost`` and ``radar_calibration`` (its result).
 
 With a ground station configured the mission waits in its initial state for ``start`` (``runner.start_given``
 is cleared when the bridge is made). The link's loss does not stop the mission: it flies on, and the link
@@ -30,7 +31,7 @@ from app.clock import Clock
 from app.eventlog import EventLog
 from app.gcs.config import GcsSettings
 from app.gcs.link import GroundLink
-from app.gcs.protocol import Abort, AuthorizeLand, Command, Event, Hold, Resume, Rtl, Start, State, Telemetry
+from app.gcs.protocol import Abort, AuthorizeLand, Battery, Command, Event, Hold, Resume, Rtl, Start, State, Telemetry
 from app.gcs.protocol import TargetEstimate as TargetPayload
 from app.missions.runner import MissionRunner
 from app.missions.table import SUCCESS
@@ -49,6 +50,8 @@ class MissionBridge:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._outcome: str | None = None
         self._last_error: str | None = None
+        self._target_found = False
+        self._calibration: object = None
         runner.start_given = False  # wait for the ground station's start
         events.subscribe(EVENT_KINDS, self._on_record)
 
@@ -89,7 +92,8 @@ class MissionBridge:
 
     def telemetry(self) -> Telemetry | None:
         t_s = self._clock.now_s()
-        pv = self.runner.boundary.telemetry().pos_vel
+        tel = self.runner.boundary.telemetry()
+        pv = tel.pos_vel
         if pv is None:
             return None
         snap = self.runner.mission.snapshot(t_s)
@@ -97,8 +101,16 @@ class MissionBridge:
         if snap.target is not None and snap.target_cov_ne_m2 is not None:
             p, v, c = snap.target.pos_ned_m, snap.target.vel_ned_mps, snap.target_cov_ne_m2
             target = TargetPayload(position_ne_m=(p[0], p[1]), velocity_ne_mps=(v[0], v[1]), covariance_ne_m2=c)
+        battery = None
+        if tel.battery is not None:
+            b = tel.battery.value
+            battery = Battery(voltage_v=b.voltage_v, remaining_frac=b.remaining_frac)
         return Telemetry(
-            t_s=pv.t_s, position_ned_m=pv.pos_ned_m, height_above_sea_m=snap.height_above_sea_m, target=target
+            t_s=pv.t_s,
+            position_ned_m=pv.pos_ned_m,
+            height_above_sea_m=snap.height_above_sea_m,
+            target=target,
+            battery=battery,
         )
 
     def _on_record(self, record: dict[str, Any]) -> None:
@@ -143,7 +155,24 @@ class MissionBridge:
             telemetry = self.telemetry()
             if telemetry is not None:
                 self.link.publish_telemetry(telemetry)
+            self._notable(telemetry)
             await self._clock.sleep(self._period_s)
+
+    def _notable(self, telemetry: Telemetry | None) -> None:
+        """Events the estimates tell, checked at the telemetry rate: the object found or lost, the radar's
+        calibration result."""
+        t_s = self._clock.now_s()
+        found = telemetry is not None and telemetry.target is not None
+        if found != self._target_found:
+            self._target_found = found
+            fields: dict[str, Any] = {"state": self.runner.state}
+            if telemetry is not None and telemetry.target is not None:
+                fields["position_ne_m"] = list(telemetry.target.position_ne_m)
+            self.link.publish_event(Event(t_s=t_s, kind="target_found" if found else "target_lost", fields=fields))
+        calibration = self.runner.mission.summary().get("radar_calibration")
+        if calibration is not None and calibration != self._calibration:
+            self._calibration = calibration
+            self.link.publish_event(Event(t_s=t_s, kind="radar_calibration", fields={"result": str(calibration)}))
 
     async def finish(self) -> None:
         """After the mission: the final state and the last events out (bounded by ``FINAL_FLUSH_S``)."""

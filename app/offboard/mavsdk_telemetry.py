@@ -43,6 +43,7 @@ from app.eventlog import EventLog
 from app.messages import (
     AttitudeEuler,
     Autopilot,
+    BatteryLevel,
     FlightMode,
     LandedState,
     PositionVelocityNed,
@@ -131,6 +132,7 @@ class MavsdkTelemetry:
             ("home", self._consume_home),
             ("global_position", self._consume_global),
             ("heartbeat", self._consume_heartbeat),
+            ("battery", self._consume_battery),
         ]
         if self._autopilot is Autopilot.PX4 and self._tel_settings.mode_rate_hz > 0.0:
             streams.append(("current_mode", self._consume_current_mode))
@@ -283,6 +285,14 @@ class MavsdkTelemetry:
         async for s, received_s in stamped(t.subscribe_landed_state, t.unsubscribe_landed_state):
             state = LandedState[s.name] if s.name in LandedState.__members__ else LandedState.UNKNOWN
             self._update(landed_state=Stamped(received_s, state))
+
+    async def _consume_battery(self) -> None:
+        """BATTERY_STATUS (~1 Hz): for the operator, not for any guard."""
+        async for b in self._telemetry.subscribe_battery():
+            volts = b.voltage_v if _finite(b.voltage_v) and b.voltage_v > 0.0 else None
+            pct = b.remaining_percent
+            frac = min(max(pct / 100.0, 0.0), 1.0) if _finite(pct) and pct >= 0.0 else None
+            self._update(battery=Stamped(self._clock.now_s(), BatteryLevel(volts, frac)))
 
     async def _consume_home(self) -> None:
         async for h in self._telemetry.subscribe_home():

@@ -53,6 +53,10 @@ class Observer:
         with self._lock:
             return [json.loads(p) for _, top, p in self.messages if top == f"{TOPICS}/cmd/ack"]
 
+    def events(self) -> list[dict]:
+        with self._lock:
+            return [json.loads(p) for _, top, p in self.messages if top == f"{TOPICS}/events"]
+
     def close(self) -> None:
         self.client.loop_stop()
         self.client.disconnect()
@@ -95,6 +99,13 @@ def test_started_over_mqtt_survives_a_broker_restart_and_aborts_into_hold_on_an_
             "id": "1", "cmd": "start", "accepted": True, "reason": None,
         }  # fmt: skip
         assert wait_for_state(run_dir / "events.jsonl", "GOTO_SEARCH", 90.0), log()
+        telemetry = wait_for(lambda: observer.last("telemetry"), 5.0)
+        assert telemetry and telemetry["position_ned_m"][2] < -5.0, telemetry  # flying, up at the search height
+        assert 14.0 < telemetry["battery"]["voltage_v"] < 17.0 and 0.5 < telemetry["battery"]["remaining_frac"] <= 1
+        kinds = [e["kind"] for e in observer.events()]
+        assert kinds.count("state_changed") >= 3 and "start_given" in kinds, kinds
+        calibration = wait_for(lambda: [e for e in observer.events() if e["kind"] == "radar_calibration"], 5.0)
+        assert calibration and calibration[0]["fields"]["result"].startswith("ok"), calibration
 
         # the broker dies mid-flight and comes back 3 s later; a hold sent as it comes back is not lost
         broker.kill()

@@ -2,11 +2,10 @@
 camera over a socket (detected by the real OpenCV detector) and its X4M03 emulator on a pty (read by the real
 driver and altitude estimator). Real time.
 
-Where it stands (issue 11): over MAVLink seed 1 picked the object up in the last runs measured (touchdown
-0.006–0.05 m), after failing in earlier ones; until that holds over many runs this test asserts what every run
-must do — the sensors live through the queues, the object found, tracked and descended on, no touchdown off the
-object, ABORT honoured, the run's artefacts written — and prints the outcome. It gives the mission 150 s past
-the first DESCEND, then asks it to abort (SIGINT), as an operator would.
+Seed 1 (``make demo``) must pick the object up with the gripper within 0.10 m of it: 16 of 16 runs measured
+on 2026-11-25 did, touchdown 0.006–0.064 m, ~55 s from arming to the grab. The sensors must have been live
+through the queues, nothing may touch the water off the object, and the run's artefacts must be written. A
+mission still flying 240 s after the first DESCEND is asked to abort (SIGINT), as an operator would — and fails.
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ from tests.e2e.cliutil import popen, read_jsonl, stop, wait_for_state
 pytestmark = pytest.mark.e2e
 
 
-def test_pickup_over_mavlink_finds_tracks_and_descends_on_the_object_with_the_served_camera_and_radar(tmp_path):
+def test_pickup_over_mavlink_picks_the_object_up_with_the_served_camera_and_radar(tmp_path):
     run_dir = tmp_path / "run"
     proc = popen(
         ["-m", "app.main", "--mission", "pickup.yaml", "--sim", "--seed", "1", "--run-dir", str(run_dir),
@@ -31,7 +30,7 @@ def test_pickup_over_mavlink_finds_tracks_and_descends_on_the_object_with_the_se
     )  # fmt: skip
     try:
         assert wait_for_state(run_dir / "events.jsonl", "DESCEND", 240.0), (tmp_path / "app.log").read_text()[-3000:]
-        deadline = time.monotonic() + 150.0
+        deadline = time.monotonic() + 240.0
         while proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.5)
         code = stop(proc, signal.SIGINT, timeout_s=30.0)  # abort if still flying: zero, HOLD, then exit
@@ -40,7 +39,8 @@ def test_pickup_over_mavlink_finds_tracks_and_descends_on_the_object_with_the_se
     s = json.loads((run_dir / "summary.json").read_text())
     brief = {k: s.get(k) for k in ("outcome", "reason", "states_visited", "touchdown_error_m", "time_to_pickup_s")}
     print(json.dumps(brief), s.get("fixes"), s.get("fixes_rejected"), s["timing"].get("setpoint_interval_p99_s"))
-    assert code in (0, 1) and s["outcome"] in ("picked_up", "failed", "aborted"), (code, brief)
+    assert code == 0 and s["outcome"] == "picked_up", (code, brief)
+    assert s["touchdown_error_m"] <= 0.10 and s["time_to_pickup_s"] < 120.0, brief
     visited = s["states_visited"]
     assert visited[:4] == ["WAIT_FOR_START", "TAKEOFF", "CALIBRATE_RADAR", "GOTO_SEARCH"]
     assert {"APPROACH", "TRACK", "DESCEND"} <= set(visited)
@@ -51,11 +51,8 @@ def test_pickup_over_mavlink_finds_tracks_and_descends_on_the_object_with_the_se
     # the simulator's truth: no touchdown off the object, whatever the outcome
     grabs = [r for r in read_jsonl(run_dir / "sim_state.jsonl") if r.get("event") == "grab"]
     assert all(g["error_m"] <= 0.25 for g in grabs) and s["off_target_touchdowns"] == 0, grabs
-    if s["outcome"] == "picked_up":
-        assert grabs[-1]["caught"] and s["touchdown_error_m"] == pytest.approx(grabs[-1]["error_m"], abs=1e-4)
-    if s["outcome"] == "aborted":  # from the vehicle's side: it ended in HOLD
-        modes = [r for r in read_jsonl(run_dir / "sim_state.jsonl") if r.get("event") == "mode"]
-        assert modes[-1]["mode"] == "HOLD", modes[-3:]
+    assert grabs[-1]["caught"] and s["touchdown_error_m"] == pytest.approx(grabs[-1]["error_m"], abs=1e-4)
+    assert visited[-4:] == ["LIFT", "RETURN", "LAND_HOME", "DONE"]
     # the setpoint stream held its 50 Hz with camera and radar running (generous bound: a loaded CI machine)
     assert s["timing"]["setpoint_interval_p99_s"] < 0.05
     png = (run_dir / "report.png").read_bytes()

@@ -8,15 +8,16 @@ from __future__ import annotations
 
 import asyncio
 import json
+import random
 
 import pytest
 
 from app.clock import LoopClock
 from app.eventlog import EventLog
+from app.flight import fly_mission
 from app.gcs.config import GcsSettings
 from app.gcs.mission import MissionBridge
 from app.gcs.protocol import Ack
-from app.main import fly_mission
 from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.settings import load_settings
@@ -25,6 +26,7 @@ from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
 from tests.app.missions.test_pickup_safety import CALM, OFFBOARD_STATES
 from tests.app.missions.test_preemption import assert_zero_then_hold, commands, mode_commands
+from tests.gcs.test_link import _malformed
 
 LOOPTIME = pytest.mark.looptime(noop_cycles=2)
 GCS = GcsSettings.from_mapping({"broker_url": "mqtt://127.0.0.1:1", "vehicle_id": "t1"})
@@ -190,3 +192,34 @@ async def test_a_pilot_switch_and_a_command_together_the_pilot_wins_and_the_comm
     ]
     assert [(r["source"], r["mode"]) for r in while_piloted] == [("pilot", "POSCTL")]
     assert flight.result.outcome == "picked_up"  # handed back, the mission went on
+
+
+@LOOPTIME
+async def test_1000_malformed_commands_mid_flight_are_each_refused_and_change_nothing():
+    """In TRACK, 1000 bad payloads of every kind: each a rejected ack; the mission stays where it was, the
+    vehicle receives nothing new from them, and the pickup goes on. The telemetry the operator gets meanwhile
+    carries the position, the estimate and the battery."""
+    f = Flight()
+    seen = {}
+
+    async def script(bridge, vehicle, task):
+        assert send(bridge, "start", "go").accepted
+        await until_state(bridge, "TRACK", task)
+        rng = random.Random(7)
+        before = (bridge.runner.state, bridge.runner.states_visited[:], bridge.runner.params)
+        seen["acks"] = [bridge.link.answer(_malformed(rng)) for _ in range(1000)]
+        seen["same"] = before == (bridge.runner.state, bridge.runner.states_visited, bridge.runner.params)
+        await until_state(bridge, "DESCEND", task)
+        while vehicle.truth().pos_ned_m[2] < -3.5:  # down into the radar's range
+            assert bridge.runner.state == "DESCEND"
+            await asyncio.sleep(0.1)
+        seen["telemetry"] = bridge.telemetry()
+
+    flight = await f.run(script)
+    assert seen["same"] and all(not a.accepted and a.reason for a in seen["acks"])
+    assert f.bridges[0].link.counters.malformed == 1000 and f.bridges[0].link.counters.commands == 1
+    assert not [r for r in f.records if r["kind"] == "gcs" and r["cmd"] != "start"]  # none reached the runner
+    t = seen["telemetry"]
+    assert t.target is not None and t.height_above_sea_m is not None and t.height_above_sea_m > 1.0
+    assert t.battery is not None and 14.0 < t.battery.voltage_v < 17.0 and 0.5 < t.battery.remaining_frac <= 1.0
+    assert flight.result.outcome == "picked_up"

@@ -9,7 +9,7 @@ import time
 
 from app.clock import LoopClock
 from app.eventlog import EventLog
-from app.main import build_flight
+from app.flight import build_flight
 from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.settings import Settings

@@ -12,7 +12,7 @@ import pytest
 
 from app.clock import LoopClock
 from app.eventlog import EventLog
-from app.main import fly_mission
+from app.flight import fly_mission
 from app.missions.table import load_mission
 from app.settings import Settings, load_settings
 from sim.airframes import SIM_PROFILES

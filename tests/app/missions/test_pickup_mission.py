@@ -12,7 +12,7 @@ import pytest
 
 from app.clock import LoopClock
 from app.eventlog import EventLog
-from app.main import fly_mission
+from app.flight import fly_mission
 from app.missions.table import load_mission
 from app.settings import load_settings
 from sim.inproc import InProcessVehicle

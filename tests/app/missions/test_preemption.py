@@ -14,7 +14,7 @@ import pytest
 from app.clock import LoopClock
 from app.errors import VehicleError
 from app.eventlog import EventLog
-from app.main import fly_mission
+from app.flight import fly_mission
 from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.settings import Settings
@@ -317,7 +317,7 @@ async def test_nan_attitude_never_reaches_the_vehicle_as_a_setpoint():
 
 @LOOPTIME
 async def test_every_setpoint_passes_the_envelope_at_the_boundary():
-    from app.main import build_flight
+    from app.flight import build_flight
 
     vehicle = FaultyVehicle(seed=1, wind=WindConfig.off())
     settings, clock, events = Settings(), LoopClock(), EventLog(None)

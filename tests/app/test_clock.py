@@ -1,0 +1,66 @@
+"""``PreciseClock``: real-time sleeps woken by a timer thread instead of epoll's whole-millisecond timeout."""
+
+from __future__ import annotations
+
+import asyncio
+import statistics
+
+import pytest
+
+from app.clock import LoopClock, PreciseClock, sleep_until
+
+
+async def _lateness_ms(clock, n: int = 40, period_s: float = 0.02) -> list[float]:
+    """Sleep to ``n`` deadlines a period apart (as the setpoint loop does); how late each wake was, ms."""
+    loop = asyncio.get_running_loop()
+    next_s = loop.time()
+    late = []
+    for _ in range(n):
+        next_s += period_s
+        await sleep_until(clock, next_s)
+        late.append((loop.time() - next_s) * 1e3)
+    return late
+
+
+async def test_wakes_are_never_early_and_print_how_late_they_are_against_the_loops_own_timer():
+    precise, plain = await _lateness_ms(PreciseClock()), await _lateness_ms(LoopClock())
+    print(
+        f"lateness median / max, ms: precise {statistics.median(precise):.3f} / {max(precise):.3f}, "
+        f"asyncio {statistics.median(plain):.3f} / {max(plain):.3f}"
+    )
+    assert min(precise) >= 0.0 and min(plain) >= -0.001  # asyncio may wake within its clock resolution
+    assert max(precise) < 50.0  # generous: a loaded 2-core machine
+
+
+async def test_sleepers_wake_in_deadline_order_and_a_cancelled_one_never_does():
+    clock = PreciseClock()
+    woke: list[str] = []
+
+    async def sleeper(name: str, dt_s: float) -> None:
+        await clock.sleep(dt_s)
+        woke.append(name)
+
+    tasks = [asyncio.create_task(sleeper(n, dt)) for n, dt in (("c", 0.06), ("a", 0.02), ("x", 0.03), ("b", 0.04))]
+    await asyncio.sleep(0.005)
+    tasks[2].cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+    await asyncio.sleep(0.05)
+    assert woke == ["a", "b", "c"] and tasks[2].cancelled()
+
+
+async def test_a_zero_or_past_sleep_returns_at_once():
+    clock = PreciseClock()
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    await clock.sleep(0.0)
+    await clock.sleep(-1.0)
+    assert loop.time() - t0 < 0.5
+
+
+@pytest.mark.parametrize("dt_s", [0.001, 0.013])
+async def test_it_sleeps_at_least_as_long_as_asked(dt_s):
+    clock = PreciseClock()
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    await clock.sleep(dt_s)
+    assert loop.time() - t0 >= dt_s
