@@ -13,9 +13,13 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
+import ctypes
+import ctypes.util
 import datetime as dt
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -37,6 +41,7 @@ from app.report import render_report
 from app.settings import Settings, load_settings
 
 SIM_PILOT_PORT = 14580
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 SIM_NICE = 5  # the simulator's niceness above the app's
 VEHICLE_ID = "drone1"  # the ground station's topic tree, seapick/<vehicle id>/v1/…, when none is given
 SPEED = number(0.0, 30.0, "m/s")
@@ -110,8 +115,13 @@ def ground_settings(settings: Settings, args: argparse.Namespace) -> GcsSettings
     return GcsSettings.from_mapping(section, "gcs", "--mqtt" if args.mqtt is not None else "settings")
 
 
-def _lower_priority() -> None:
+def _simulator_child() -> None:
+    """In the simulator's process before it starts: a lower priority, and dying with the app — even when the app
+    is killed outright (SIGKILL), a simulator left behind would fly on and eat CPU (Linux: PR_SET_PDEATHSIG)."""
     os.nice(SIM_NICE)
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 def free_udp_port() -> int:
@@ -159,7 +169,7 @@ def start_simulator(
     log = (run_dir / "sim.log").open("wb")
     # The simulator stands in for other hardware (the autopilot, the camera, the radar) that does not share the
     # companion computer's CPU: it runs at a lower priority, so the app's setpoint loop is not queued behind it.
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_lower_priority)
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_simulator_child)
     return proc, f"udpin://0.0.0.0:{port}"
 
 

@@ -2,10 +2,11 @@
 camera over a socket (detected by the real OpenCV detector) and its X4M03 emulator on a pty (read by the real
 driver and altitude estimator). Real time.
 
-Seed 1 (``make demo``) must pick the object up with the gripper within 0.10 m of it: 16 of 16 runs measured
-on 2026-11-25 did, touchdown 0.006–0.064 m, ~55 s from arming to the grab. The sensors must have been live
-through the queues, nothing may touch the water off the object, and the run's artefacts must be written. A
-mission still flying 240 s after the first DESCEND is asked to abort (SIGINT), as an operator would — and fails.
+Seed 1 (``make demo``) must pick the object up with the gripper within 0.10 m of it: the 32 runs measured on
+2026-11-25 since the last fix all did, touchdown 0.005–0.064 m, ~55 s from arming to the grab. The sensors must
+have been live through the queues, nothing may touch the water off the object, and the run's artefacts must be
+written. A mission still flying 240 s after the first DESCEND is asked to abort (SIGINT), as an operator would —
+and fails.
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
+import subprocess
 import time
 
 import pytest
@@ -141,3 +143,32 @@ def test_killed_app_leaves_the_vehicle_in_hold_within_1_5_s(tmp_path, tracking_a
         f"vehicle in HOLD {hold['t_wall'] - t_kill_wall:.3f} s after the kill, {loss_s:.3f} s after its last setpoint"
     )
     assert 1.0 <= loss_s <= 1.0 + 0.05  # the simulator steps in 5 ms substeps: within a few
+
+
+def test_an_app_killed_outright_takes_its_simulator_with_it(tmp_path):
+    """``--sim``: the simulator is the app's child; SIGKILL on the app (no cleanup runs) must not leave it flying
+    and eating CPU (it dies with its parent: PR_SET_PDEATHSIG)."""
+    app = popen(
+        ["-m", "app.main", "--mission", "circle.yaml", "--sim", "--pilot-port", "0",
+         "--run-dir", str(tmp_path / "run")],
+        tmp_path / "app.log",
+    )  # fmt: skip
+    try:
+        assert wait_for_state(tmp_path / "run" / "events.jsonl", "TAKEOFF", 60), (tmp_path / "app.log").read_text()
+        children = subprocess.run(["pgrep", "-P", str(app.pid), "-f", "sim.autopilot"], capture_output=True, text=True)
+        sim_pids = [int(p) for p in children.stdout.split()]
+        assert len(sim_pids) == 1, children
+        app.send_signal(signal.SIGKILL)
+        app.wait(timeout=5)
+        gone = wait_for(lambda: not os.path.exists(f"/proc/{sim_pids[0]}") or _zombie(sim_pids[0]), 5.0)
+        assert gone, f"simulator {sim_pids[0]} still running after the app was killed"
+    finally:
+        stop(app, signal.SIGKILL)
+
+
+def _zombie(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] == "Z"
+    except OSError:
+        return True
