@@ -240,3 +240,21 @@ def test_the_sphere_size_ratio_is_one_for_the_buoy_from_any_height_and_place_on_
         # a level disc's outline off-centre is a little smaller than a sphere's: √cos θ of it
         assert ratio == pytest.approx(math.sqrt(math.cos(fix.off_vertical_rad)), abs=0.02), (height_m, n_m, e_m)
         assert sphere_size_ratio(tuple(f.centre_true_px), 2 * diameter_px, fix, tri.camera, 0.15) > 1.8
+
+
+def test_the_detector_thread_runs_nicer_than_the_loop():
+    """``lower_this_threads_priority`` in a worker thread: that thread's niceness rises, the caller's does not."""
+    import os
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from app.missions.pickup_feeds import DETECTOR_NICE, lower_this_threads_priority
+
+    def nice_of(tid: int) -> int:
+        return os.getpriority(os.PRIO_PROCESS, tid)
+
+    before = nice_of(threading.get_native_id())
+    with ThreadPoolExecutor(1, initializer=lower_this_threads_priority) as worker:
+        worker_nice = worker.submit(lambda: nice_of(threading.get_native_id())).result()
+    assert worker_nice == before + DETECTOR_NICE
+    assert nice_of(threading.get_native_id()) == before
