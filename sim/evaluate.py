@@ -1,5 +1,7 @@
 """``python -m sim.evaluate filters [--sea-state N ...] [--json]``: the target filters against ground truth.
 
+(Without ``filters``: the pickup's Monte Carlo evaluation, ``sim.evaluate_cli``.)
+
 For each sea state, one seeded sea and object, one seeded stream of triangulated fixes (``sim.fixes``), fed
 in delivery order to the thesis's constant-velocity filter and to the wave filter. After each fix (past a
 warm-up) each filter predicts the object at +0, +0.5, +1 and +2 s; the error is the horizontal distance to
@@ -134,6 +136,16 @@ def print_table(result: dict[str, dict[str, object]]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``filters`` (the filter study), else the pickup's Monte Carlo evaluation (``sim.evaluate_cli``)."""
+    args = sys.argv[1:] if argv is None else argv
+    if args[:1] == ["filters"]:
+        return filters_main(args)
+    from sim.evaluate_cli import main as pickup_main
+
+    return pickup_main(args)
+
+
+def filters_main(argv: list[str] | None = None) -> int:
     p = OneLineParser(prog="python -m sim.evaluate", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="what", required=True)
     f = sub.add_parser("filters", help="constant-velocity vs wave filter prediction error by sea state")

@@ -4,7 +4,8 @@ The in-process vehicle (``sim.inproc``) flies; this adds what the camera and the
 their own rates and with their latency, computed from the truth:
 
 - camera (geometric mode, ``sim.camera_geometry``): every ``frame_period_s`` the marker's corners projected
-  from the vehicle's true pose, handed to the mission ``latency_s`` later with the *capture* time. With nested
+  from the vehicle's true pose, handed to the mission ``latency_s`` later (``frame_latency_s``) with the *capture*
+  time (``stamp_at_arrival``: the time it arrives, as a pipeline without latency compensation would). With nested
   markers (``DetectorSettings.nested_marker_ids``, sized as ``app.sensors.detect_marker`` expects) the largest
   one wholly in the image and at least ``MIN_EDGE_PX`` across is what the detector reports, with its size;
 - radar: the radar's true height above the sea surface under the vehicle (waves included), plus noise.
@@ -18,6 +19,7 @@ miss regardless. A caught object hangs in the gripper: the camera no longer sees
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -43,11 +45,15 @@ class PickupScenario:
     seed: int = 1
     sea_state: int = 2
     current_mps: float = 0.3
+    current_to_deg: float = 60.0  # where the current flows to, degrees from north (SeaConfig's default)
     object_start_ne_m: tuple[float, float] = (40.0, 20.0)
     marker_size_m: float = 0.30
     object_kind: str = "marker"  # or "buoy": a sphere of the detector's buoy_diameter_m
     frame_period_s: float = 1.0 / 15.0
     latency_s: float = 0.06
+    # no latency compensation (the thesis): a detection reaches the mission stamped with the time it *arrives*,
+    # so it is paired with the vehicle's state then, not at the frame's capture
+    stamp_at_arrival: bool = False
     pixel_noise_px: float = 0.5
     radar_noise_m: float = 0.02
     radar_range_m: float = 5.0  # the radar's last range (settings.radar.frame_area_end_m)
@@ -75,7 +81,10 @@ class PickupWorld:
         here they are also the truth."""
         self.vehicle = vehicle
         self.scenario = sc = scenario
-        self.sea = SeaWorld(SeaConfig(sea_state=sc.sea_state, current_mps=sc.current_mps), seed=sc.seed)
+        self.sea = SeaWorld(
+            SeaConfig(sea_state=sc.sea_state, current_mps=sc.current_mps, current_to_deg=sc.current_to_deg),
+            seed=sc.seed,
+        )
         self.object = FloatingObject(self.sea, start_ne_m=sc.object_start_ne_m)
         self.camera = GeometricCamera(
             settings.camera, marker_size_m=sc.marker_size_m, pixel_noise_std_px=sc.pixel_noise_px, seed=sc.seed
@@ -110,7 +119,7 @@ class PickupWorld:
         """The camera and the radar, producing into the mission's queues until cancelled."""
         feeds.set_radar_calibrator(RadarCalibrator(self.scenario.radar_range_m, self.calibrate_radar))
         loop = asyncio.get_running_loop()
-        pending: list[CameraObservation] = []
+        pending: list[tuple[float, CameraObservation]] = []  # (when it reaches the mission, the observation)
         next_s = loop.time()
         sc = self.scenario
         while True:
@@ -137,13 +146,21 @@ class PickupWorld:
             # a caught object hangs in the gripper, out of the camera's sea
             blind = self.outcome.caught or self.camera_blind
             if blind:
-                pending.append(CameraObservation(t_s))
+                seen = CameraObservation(t_s)
             elif sc.object_kind == "buoy":
-                pending.append(self._buoy_seen(t_s, truth, o.pos_ned_m))
+                seen = self._buoy_seen(t_s, truth, o.pos_ned_m)
             else:
-                pending.append(self._largest_seen(t_s, truth, o.pos_ned_m))
-            while pending and pending[0].t_s + sc.latency_s <= t_s:
-                feeds.frames.put(pending.pop(0))
+                seen = self._largest_seen(t_s, truth, o.pos_ned_m)
+            # frames are handed over in order: one never overtakes the one before it
+            due_s = max(t_s + self.frame_latency_s(), pending[-1][0] if pending else -math.inf)
+            pending.append((due_s, seen))
+            while pending and pending[0][0] <= t_s:
+                seen = pending.pop(0)[1]
+                feeds.frames.put(dataclasses.replace(seen, t_s=t_s) if sc.stamp_at_arrival else seen)
+
+    def frame_latency_s(self) -> float:
+        """Capture → detection handed to the mission for the frame being captured, s (``latency_s``)."""
+        return self.scenario.latency_s
 
     def _largest_seen(self, t_s: float, truth: Any, centre_ned_m: Any) -> CameraObservation:
         """The largest marker of the set wholly in the image and big enough to decode (its corners, its edge)."""

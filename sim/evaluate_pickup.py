@@ -1,0 +1,252 @@
+"""One evaluation run of the pickup, and many of them on local processes or a Dask cluster.
+
+``run_pickup(scenario, config)`` flies the whole pickup mission (``app.flight.fly_mission``: the same code as a
+real flight) on the in-process vehicle with the geometric camera and radar heights (``sim.pickup_eval_world``),
+on its own looptime event loop in virtual time, and returns one JSON-able dict: a pure function of its
+arguments (every random stream is seeded from the scenario), so a local process and a Dask worker give the same
+result for the same scenario — only ``wall_s`` differs.
+
+The result's fields: ``run``, ``seed``, ``scenario``, ``config``, ``outcome`` (the mission's — ``picked_up``,
+``failed``, ``aborted``, ``pilot`` — or ``timeout`` past ``RUN_LIMIT_S`` of mission time, ``error`` if the run
+raised), ``final_state``, ``touchdown_error_m`` (gripper to object, horizontal, from the truth: the grab that
+caught it, else the last grab; None without a grab), ``time_to_pickup_s`` (arming → the grab that caught it),
+``retries``, ``grabs``, ``abort_reason`` (None when picked up: else the transition that gave up — ``STATE→STATE:
+reason`` — or the error), ``envelope_violations`` (setpoints outside the speed envelope or not finite, as the
+vehicle received them: ``sim.safety_rules``' ``finite_in_envelope``), ``safety_violations`` (every rule broken),
+``off_target_touchdowns`` (grabs farther than the scenario's capture radius from the object), ``mission_s``,
+``wall_s``, ``fixes_rejected`` and ``clutter`` (what the clutter and the detector model did).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import json
+import sys
+import time
+from collections.abc import Callable, Coroutine, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import looptime
+
+from app.cli import one_line
+from app.clock import LoopClock
+from app.eventlog import EventLog
+from app.flight import fly_mission
+from app.missions.pickup_feeds import PickupFeeds
+from app.missions.table import load_mission
+from app.settings import load_settings
+from sim.airframes import SIM_PROFILES
+from sim.estimator import ESTIMATORS
+from sim.faults import limits_of
+from sim.inproc import InProcessVehicle
+from sim.pickup_eval_world import EvalPickupWorld
+from sim.pickup_scenarios import CONFIGS, EvalConfig
+from sim.pickup_world import PickupScenario
+from sim.safety_rules import RunFacts, check
+from sim.wind import WindConfig
+
+RUN_LIMIT_S = 1500.0  # mission time; the table's own timeouts end every run well before
+NOOP_CYCLES = 2  # the looptime loop's setting (as the tests and sim.faults)
+OUTCOMES = ("picked_up", "failed", "aborted", "pilot", "timeout", "error")
+TRACE_PERIOD_S = 0.2  # the truth written for a run's report (--run-reports)
+
+
+def run_pickup(scenario: dict[str, Any], config: str, run: int = 0, run_dir: str | None = None) -> dict[str, Any]:
+    """Fly one scenario with one configuration (``CONFIGS``) on a fresh looptime loop; see the module docstring.
+    ``run_dir``: also write the run's event log, the simulator's truth and ``report.png`` there."""
+    wall0 = time.perf_counter()
+    loop = looptime.new_event_loop(noop_cycles=NOOP_CYCLES)
+    try:
+        result = loop.run_until_complete(_fly(scenario, CONFIGS[config], Path(run_dir) if run_dir else None))
+    except Exception as e:  # one broken run must not end the evaluation: it is counted as an error
+        result = _empty("error", f"{type(e).__name__}: {one_line(e)}")
+    finally:
+        loop.close()
+    wall_s = round(time.perf_counter() - wall0, 3)  # the flight's, not the report's
+    if run_dir is not None and result["outcome"] != "error":
+        from app.report import render_report
+
+        render_report(Path(run_dir), title=f"{config} run {run} (seed {scenario['seed']})")
+    return {"run": run, "seed": scenario["seed"], "scenario": scenario, "config": config} | result | {"wall_s": wall_s}
+
+
+def _empty(outcome: str, reason: str) -> dict[str, Any]:
+    return {
+        "outcome": outcome, "final_state": None, "touchdown_error_m": None, "time_to_pickup_s": None, "retries": 0,
+        "grabs": 0, "abort_reason": reason, "envelope_violations": 0, "safety_violations": [],
+        "off_target_touchdowns": 0, "mission_s": 0.0, "fixes_rejected": {}, "clutter": {},
+    }  # fmt: skip
+
+
+async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dict[str, Any]:
+    settings = load_settings()
+    profile = SIM_PROFILES[sc["profile"]]
+    wind = WindConfig(mean_mps=sc["wind_mps"], from_deg=sc["wind_from_deg"], gust_sigma_mps=sc["gust_sigma_mps"])
+    vehicle = InProcessVehicle(
+        seed=sc["seed"],
+        wind=wind,
+        profile=profile.autopilot,
+        vehicle_params=profile.airframe,
+        estimator=ESTIMATORS[sc["estimator"]],
+    )
+    start_ne_m = (float(sc["object_start_ne_m"][0]), float(sc["object_start_ne_m"][1]))
+    scenario = PickupScenario(
+        seed=sc["seed"],
+        sea_state=sc["sea_state"],
+        current_mps=sc["current_mps"],
+        current_to_deg=sc["current_to_deg"],
+        object_start_ne_m=start_ne_m,
+        object_kind=sc["object_kind"],
+        latency_s=sc["latency_s"],
+        pixel_noise_px=sc["pixel_noise_px"],
+        stamp_at_arrival=not cfg.latency_compensation,
+    )
+    world = EvalPickupWorld(vehicle, scenario, settings, sc["clutter"], cfg.full_frame_detection)
+    table = load_mission("pickup")
+    params = {"target_filter": cfg.target_filter, "sea_state": sc["sea_state"], "search_start_ne_m": start_ne_m}
+    table = table.model_copy(update={"params": table.params.model_copy(update=params)})
+    clock = LoopClock()
+    events = EventLog(run_dir / "events.jsonl" if run_dir is not None else None)
+    states: list[dict[str, Any]] = []
+    events.subscribe({"state"}, states.append)
+    sensors: list[Callable[[PickupFeeds], Coroutine[Any, Any, None]]] = [world.sensors]
+    if run_dir is not None:
+        sensors.append(lambda feeds: _truth_trace(world, run_dir))
+    t0_s = clock.now_s()
+    try:
+        async with asyncio.timeout(RUN_LIMIT_S):
+            flight = await fly_mission(vehicle, table, settings, clock, events, sensors=sensors)
+        outcome, reason, final_state = flight.result.outcome, flight.result.reason, flight.result.final_state
+        figures = flight.figures
+    except TimeoutError:
+        outcome, reason, final_state, figures = "timeout", f"still flying after {RUN_LIMIT_S:g} s", None, {}
+    finally:
+        events.close()
+    end_s = clock.now_s()
+    abort_t_s = next((r["t_s"] for r in states if r["to"] == "ABORT"), None)
+    facts = RunFacts(
+        outcome, reason, frozenset(OUTCOMES), abort_t_s, events.total(), events.total(), grace_s=0.06, end_t_s=end_s
+    )
+    violations = check(vehicle.records, facts, limits_of(settings))
+    grabs = world.outcome.grabs
+    caught = [g for g in grabs if g["caught"]]
+    touchdown = caught[0] if caught else (grabs[-1] if grabs else None)
+    armed_s = next((r["t_s"] for r in vehicle.records if r["event"] == "armed" and r["armed"]), None)
+    if run_dir is not None:
+        _write_grabs(run_dir, grabs)
+    return {
+        "outcome": outcome,
+        "final_state": final_state,
+        "touchdown_error_m": None if touchdown is None else round(touchdown["error_m"], 4),
+        "time_to_pickup_s": round(caught[0]["t_s"] - armed_s, 2) if caught and armed_s is not None else None,
+        "retries": max(0, len(grabs) - 1),
+        "grabs": len(grabs),
+        "abort_reason": None if outcome == "picked_up" else _gave_up(states, reason),
+        "envelope_violations": sum(1 for v in violations if v.rule == "finite_in_envelope"),
+        "safety_violations": sorted({v.rule for v in violations}),
+        "off_target_touchdowns": sum(1 for g in grabs if g["error_m"] > scenario.capture_radius_m),
+        "mission_s": round(end_s - t0_s, 2),
+        "fixes_rejected": dict(sorted(figures.get("fixes_rejected", {}).items())),
+        "clutter": world.clutter_summary(),
+    }
+
+
+def _gave_up(states: Sequence[dict[str, Any]], reason: str) -> str:
+    """The first transition that turned back (to RETURN, ABORT or a failed end), else the run's reason."""
+    for r in states:
+        if r["to"] in ("RETURN", "ABORT", "FAILED", "RETURNED_EMPTY", "MANUAL"):
+            return f"{r['from']}→{r['to']}: {r['reason']}"
+    return reason
+
+
+async def _truth_trace(world: EvalPickupWorld, run_dir: Path) -> None:
+    """A sensor task in name only: the object's and the vehicle's truth at 5 Hz, for the run's report."""
+    loop = asyncio.get_running_loop()
+    with (run_dir / "sim_state.jsonl").open("w") as f:
+        f.write(json.dumps({"event": "start", "t_s": 0.0, "boot_monotonic_s": 0.0}) + "\n")
+        while True:
+            t_s = loop.time()
+            o, v = world.object.state(t_s), world.vehicle.truth()
+            f.write(json.dumps({"event": "object", "t_s": t_s, "pos_ned_m": [float(x) for x in o.pos_ned_m]}) + "\n")
+            f.write(json.dumps({"event": "truth", "t_s": t_s, "pos_ned_m": [float(x) for x in v.pos_ned_m]}) + "\n")
+            await asyncio.sleep(TRACE_PERIOD_S)
+
+
+def _write_grabs(run_dir: Path, grabs: list[dict[str, Any]]) -> None:
+    with (run_dir / "sim_state.jsonl").open("a") as f:
+        for g in grabs:
+            f.write(json.dumps({"event": "grab", **g}) + "\n")
+
+
+# ---- many runs -----------------------------------------------------------------------------------------------
+
+Job = tuple[dict[str, Any], str, int, str | None]  # (scenario, config, run index, run directory)
+
+
+def run_jobs(
+    jobs: Sequence[Job],
+    processes: int,
+    dask_address: str | None = None,
+    progress: Callable[[dict[str, Any]], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Every job's result, in the order of ``jobs``: on ``processes`` local processes (1: in this one), or on the
+    Dask cluster at ``dask_address`` (a ``dask.distributed`` scheduler, e.g. ``tcp://host:8786``)."""
+    results: list[dict[str, Any] | None] = [None] * len(jobs)
+    for i, r in _completed(jobs, processes, dask_address):
+        results[i] = r
+        if progress is not None:
+            progress(r)
+    return [r for r in results if r is not None]
+
+
+def _completed(jobs: Sequence[Job], processes: int, dask_address: str | None) -> Iterator[tuple[int, dict[str, Any]]]:
+    if dask_address is not None:
+        from dask.distributed import Client, as_completed
+
+        with Client(dask_address) as client:
+            futures = [client.submit(run_pickup, *job, pure=False) for job in jobs]
+            index = {f.key: i for i, f in enumerate(futures)}
+            for f in as_completed(futures):
+                yield index[f.key], f.result()
+        return
+    if processes <= 1:
+        for i, job in enumerate(jobs):
+            yield i, run_pickup(*job)
+        return
+    with concurrent.futures.ProcessPoolExecutor(processes) as pool:
+        pending = {pool.submit(run_pickup, *job): i for i, job in enumerate(jobs)}
+        for f in concurrent.futures.as_completed(pending):
+            yield pending[f], f.result()
+
+
+class Progress:
+    """A one-line progress bar on stderr: runs done, picked up, runs per second, time left."""
+
+    def __init__(self, total: int, stream: Any = None, width: int = 30) -> None:
+        self.total, self.done, self.ok = total, 0, 0
+        self.stream = stream if stream is not None else sys.stderr
+        self.width = width
+        self.t0 = time.perf_counter()
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._last_pct = -1
+
+    def __call__(self, result: dict[str, Any]) -> None:
+        self.done += 1
+        self.ok += result["outcome"] == "picked_up"
+        elapsed_s = time.perf_counter() - self.t0
+        rate = self.done / elapsed_s if elapsed_s > 0 else 0.0
+        left_s = (self.total - self.done) / rate if rate > 0 else 0.0
+        filled = self.width * self.done // max(self.total, 1)
+        line = (
+            f"[{'#' * filled}{'.' * (self.width - filled)}] {self.done}/{self.total} runs, {self.ok} picked up, "
+            f"{rate:.2f} runs/s, {elapsed_s:.0f} s, ~{left_s:.0f} s left"
+        )
+        pct = 100 * self.done // max(self.total, 1)
+        if self.tty:
+            self.stream.write("\r" + line + ("\n" if self.done == self.total else ""))
+        elif pct // 10 != self._last_pct // 10 or self.done == self.total:  # a line per 10 % when not a terminal
+            self.stream.write(line + "\n")
+        self._last_pct = pct
+        self.stream.flush()

@@ -1,0 +1,95 @@
+"""Randomised pickup scenarios and the configurations they are flown with (``python -m sim.evaluate``).
+
+A scenario is a plain JSON-able dict, drawn from ``(seed, index)`` alone — run 7 of seed 1 is the same scenario
+whatever ``--runs`` is — so a run can be repeated anywhere (a local process, a Dask worker) from its line in
+``results.jsonl``. What is drawn (uniform unless said):
+
+- sea state 0–4 (or the one asked for); current 0–1 m/s towards any bearing; wind 0–10 m/s from any bearing,
+  gusts σ 10–30 % of the mean;
+- camera latency (capture → detection at the mission) 0–250 ms; pixel noise 0.3–1.0 px;
+- the object: the marker or the buoy (even odds), 40–80 m from home at any bearing; the search is centred where
+  it was reported (its start), and it drifts with the current and the waves from there;
+- clutter, half the runs: for the marker a same-ID glyph of the wrong size floating 3–6 m from it; for the buoy
+  right-size glints on the sea (``sim.pickup_eval_world``);
+- the autopilot: PX4 or ArduPilot (``sim.airframes.SIM_PROFILES``), with an estimator error preset
+  (``sim.estimator.ESTIMATORS``: perfect, gnss, px4-sih).
+
+A configuration is what the *app* does differently: ``seapick`` (the defaults) and ``thesis`` (the thesis's
+constant-velocity filter, no latency compensation, full-frame detection).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from sim.estimator import ESTIMATORS
+
+SEA_STATES_SAMPLED = (0, 1, 2, 3, 4)
+CURRENT_MPS = (0.0, 1.0)
+WIND_MPS = (0.0, 10.0)
+GUST_FRACTION = (0.1, 0.3)  # gust σ over the mean wind
+LATENCY_S = (0.0, 0.25)
+PIXEL_NOISE_PX = (0.3, 1.0)
+OBJECT_DISTANCE_M = (40.0, 80.0)
+CLUTTER_ODDS = 0.5
+PROFILES = ("px4", "ardupilot")
+ESTIMATOR_PRESETS = tuple(sorted(ESTIMATORS))  # perfect, gnss, px4-sih
+
+
+@dataclass(frozen=True, slots=True)
+class EvalConfig:
+    """How the app flies: the target filter, whether detections are paired with the state at capture time, and
+    whether the detector searches the whole frame every time (the thesis) or tracks a window (seapick)."""
+
+    name: str
+    target_filter: Literal["constant_velocity", "wave"]
+    latency_compensation: bool
+    full_frame_detection: bool
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+CONFIGS: dict[str, EvalConfig] = {
+    "seapick": EvalConfig("seapick", "wave", latency_compensation=True, full_frame_detection=False),
+    "thesis": EvalConfig("thesis", "constant_velocity", latency_compensation=False, full_frame_detection=True),
+}
+
+
+def sample_scenario(seed: int, index: int, sea_state: int | None = None) -> dict[str, Any]:
+    """Scenario ``index`` of ``seed`` (``sea_state`` None: drawn from 0–4)."""
+    rng = np.random.default_rng([seed, index])
+    world_seed = int(rng.integers(1, 2**31 - 1))
+    drawn_sea_state = int(rng.choice(SEA_STATES_SAMPLED))  # drawn always, so the rest does not depend on it
+    kind = "marker" if rng.random() < 0.5 else "buoy"
+    distance_m = float(rng.uniform(*OBJECT_DISTANCE_M))
+    bearing_rad = float(rng.uniform(0.0, 2.0 * math.pi))
+    wind_mps = float(rng.uniform(*WIND_MPS))
+    cluttered = bool(rng.random() < CLUTTER_ODDS)
+    return {
+        "seed": world_seed,
+        "sea_state": drawn_sea_state if sea_state is None else sea_state,
+        "current_mps": round(float(rng.uniform(*CURRENT_MPS)), 3),
+        "current_to_deg": round(float(rng.uniform(0.0, 360.0)), 1),
+        "wind_mps": round(wind_mps, 2),
+        "wind_from_deg": round(float(rng.uniform(0.0, 360.0)), 1),
+        "gust_sigma_mps": round(wind_mps * float(rng.uniform(*GUST_FRACTION)), 3),
+        "latency_s": round(float(rng.uniform(*LATENCY_S)), 4),
+        "pixel_noise_px": round(float(rng.uniform(*PIXEL_NOISE_PX)), 3),
+        "object_kind": kind,
+        "object_start_ne_m": [
+            round(distance_m * math.cos(bearing_rad), 2),
+            round(distance_m * math.sin(bearing_rad), 2),
+        ],
+        "clutter": ("glyph" if kind == "marker" else "glints") if cluttered else "none",
+        "profile": str(rng.choice(PROFILES)),
+        "estimator": str(rng.choice(ESTIMATOR_PRESETS)),
+    }
+
+
+def sample_scenarios(seed: int, runs: int, sea_state: int | None = None) -> list[dict[str, Any]]:
+    return [sample_scenario(seed, i, sea_state) for i in range(runs)]

@@ -1,0 +1,181 @@
+"""The pickup's Monte Carlo evaluation (``python -m sim.evaluate``): a small one through the real CLI, its lines and
+its JSON checked, the same runs on a Dask ``LocalCluster``, bad options refused, and the world's switches."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from app.missions.pickup_feeds import PickupFeeds
+from app.settings import load_settings
+from sim.evaluate_pickup import OUTCOMES, run_jobs
+from sim.inproc import InProcessVehicle
+from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
+from sim.pickup_scenarios import CONFIGS, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
+from sim.pickup_world import PickupScenario, PickupWorld
+from sim.wind import WindConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+SEED, RUNS, SEA_STATE = 23, 2, 1  # two quick scenarios: buoys, one on PX4 (picked up), one on ArduPilot
+CLI = ["--runs", str(RUNS), "--seed", str(SEED), "--sea-state", str(SEA_STATE), "--compare", "thesis,seapick"]
+NUMBERS = {"touchdown_error_m", "time_to_pickup_s"}
+
+
+@pytest.fixture(scope="module")
+def evaluation(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    out = tmp_path_factory.mktemp("eval")
+    done = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", *CLI, "--jobs", "2", "--json", "--out", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    lines = (out / "results.jsonl").read_text().splitlines()
+    return {"out": out, "json": done.stdout, "stderr": done.stderr, "results": [json.loads(x) for x in lines]}
+
+
+def test_every_result_line_is_well_formed(evaluation):
+    """One line per scenario and configuration, each with the fields, types, ranges and vocabulary promised."""
+    results = evaluation["results"]
+    assert [(r["config"], r["run"]) for r in results] == [(c, i) for c in ("thesis", "seapick") for i in range(RUNS)]
+    scenarios = sample_scenarios(SEED, RUNS, SEA_STATE)
+    for r in results:
+        sc = r["scenario"]
+        assert sc == scenarios[r["run"]] and r["seed"] == sc["seed"]  # the same scenarios for both configurations
+        assert sc["sea_state"] == SEA_STATE and 0.0 <= sc["current_mps"] <= 1.0 and 0.0 <= sc["wind_mps"] <= 10.0
+        assert 0.0 <= sc["latency_s"] <= 0.25 and 40.0 <= math.hypot(*sc["object_start_ne_m"]) <= 80.0
+        assert sc["object_kind"] in ("marker", "buoy") and sc["clutter"] in CLUTTER_KINDS
+        assert sc["profile"] in PROFILES and sc["estimator"] in ESTIMATOR_PRESETS
+        assert r["config"] in CONFIGS and r["outcome"] in OUTCOMES
+        for k in NUMBERS:
+            assert r[k] is None or (isinstance(r[k], float) and r[k] >= 0.0), k
+        assert (r["outcome"] == "picked_up") == (r["abort_reason"] is None)
+        assert r["outcome"] != "picked_up" or r["time_to_pickup_s"] is not None  # (a catch can still end in ABORT)
+        assert r["touchdown_error_m"] is not None or r["grabs"] == 0
+        for k in ("retries", "grabs", "envelope_violations", "off_target_touchdowns"):
+            assert isinstance(r[k], int) and r[k] >= 0, k
+        assert r["retries"] == max(0, r["grabs"] - 1) and r["off_target_touchdowns"] <= r["grabs"]
+        assert isinstance(r["safety_violations"], list) and isinstance(r["fixes_rejected"], dict)
+        assert r["mission_s"] > 30.0 and 0.0 < r["wall_s"] < r["mission_s"]  # virtual time: faster than real
+    print([(r["config"], r["outcome"], r["touchdown_error_m"], r["abort_reason"]) for r in results])
+    assert any(r["outcome"] == "picked_up" for r in results)
+    assert "runs" in evaluation["stderr"]  # the progress bar
+    for f in ("report.png", "index.html", "summary.json"):
+        assert (evaluation["out"] / f).stat().st_size > 500, f
+
+
+def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
+    """One JSON object on stdout; each configuration's figures recomputed from results.jsonl; ratio_p95 = a/b."""
+    doc = json.loads(evaluation["json"])  # the whole of stdout is the one object
+    assert list(doc["configs"]) == ["thesis", "seapick"]
+    for name, c in doc["configs"].items():
+        rs = [r for r in evaluation["results"] if r["config"] == name]
+        errs = [r["touchdown_error_m"] for r in rs if r["touchdown_error_m"] is not None]
+        assert c["runs"] == RUNS and c["success_rate"] == sum(r["outcome"] == "picked_up" for r in rs) / RUNS
+        assert c["touchdown_p50_m"] == (round(float(np.percentile(errs, 50)), 4) if errs else None)
+        assert c["touchdown_p95_m"] == (round(float(np.percentile(errs, 95)), 4) if errs else None)
+        assert c["off_target_touchdowns"] == sum(r["off_target_touchdowns"] for r in rs)
+        assert c["envelope_violations"] == sum(r["envelope_violations"] for r in rs)
+        assert c["speedup_vs_real_time"] > 5.0
+    a, b = doc["configs"]["thesis"]["touchdown_p95_m"], doc["configs"]["seapick"]["touchdown_p95_m"]
+    assert doc["ratio_p95"] == (round(a / b, 3) if a is not None and b else None)
+
+
+def test_a_dask_cluster_gives_the_same_result_per_seed_as_local_processes(evaluation):
+    """The same run function submitted through dask.distributed's Client: identical lines but for the wall time."""
+    from dask.distributed import LocalCluster
+
+    local = [r for r in evaluation["results"] if r["config"] == "seapick"][:1]  # one run: ~10 s under the GIL
+    jobs = [(r["scenario"], r["config"], r["run"], None) for r in local]
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cluster:
+        remote = run_jobs(jobs, 1, cluster.scheduler_address)
+
+    def same(r: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in r.items() if k != "wall_s"}
+
+    assert [same(r) for r in remote] == [same(r) for r in local]
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        ("--runs 0", "argument --runs: 0 is outside"),
+        ("--jobs 0", "argument --jobs: 0 is outside"),
+        ("--sea-state 9", "argument --sea-state: 9 is outside"),
+        ("--compare thesis,nope", "argument --compare: 'thesis,nope': give distinct names"),
+        ("--compare seapick,seapick", "give distinct names"),
+        ("--dask nonsense", "argument --dask: 'nonsense' is not a scheduler address"),
+        ("--out /proc/seapick/out --runs 1", "/proc/seapick"),
+    ],
+)
+def test_bad_options_are_one_line_and_exit_2(args, fragment):
+    done = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", *args.split()], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 2 and fragment in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and done.stdout == ""
+
+
+def test_the_same_seed_and_index_draw_the_same_scenario_whatever_the_number_of_runs():
+    assert sample_scenarios(5, 3)[2] == sample_scenario(5, 2) and sample_scenario(5, 2) != sample_scenario(6, 2)
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+
+    def put(self, item: Any) -> None:
+        self.items.append(item)
+
+
+async def frames_handed_over(world: PickupWorld, seconds: float) -> list[tuple[float, float]]:
+    """(arrival, stamp) of every frame the world hands to the mission in ``seconds`` of virtual time."""
+    loop = asyncio.get_running_loop()
+    got: list[tuple[float, float]] = []
+
+    class Frames(Recorder):
+        def put(self, item: Any) -> None:
+            got.append((loop.time(), item.t_s))
+
+    feeds = PickupFeeds()
+    feeds.frames = Frames()  # type: ignore[assignment]
+    feeds.heights = Recorder()  # type: ignore[assignment]
+    with contextlib.suppress(TimeoutError):
+        await asyncio.wait_for(world.sensors(feeds), seconds)
+    return got
+
+
+@pytest.mark.parametrize("stamp_at_arrival", [False, True])
+@pytest.mark.looptime(noop_cycles=2)
+async def test_frames_carry_their_capture_time_unless_stamped_at_arrival(stamp_at_arrival):
+    """By default (today's behaviour) a frame reaches the mission ``latency_s`` later with its capture time; with
+    ``stamp_at_arrival`` (the thesis: no latency compensation) it carries the time it arrived."""
+    scenario = PickupScenario(seed=1, latency_s=0.15, stamp_at_arrival=stamp_at_arrival)
+    world = PickupWorld(InProcessVehicle(seed=1, wind=WindConfig.off()), scenario, load_settings())
+    got = await frames_handed_over(world, 2.0)
+    ages = [arrived - stamp for arrived, stamp in got]
+    assert len(got) >= 25
+    if stamp_at_arrival:
+        assert max(ages) == 0.0
+    else:
+        assert all(0.15 <= a < 0.15 + scenario.frame_period_s + 1e-9 for a in ages)
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_full_frame_detection_hands_frames_over_later_and_in_order():
+    """The thesis's full-frame detector adds ~16 ms a frame (as measured); frames still arrive in capture order."""
+    scenario = PickupScenario(seed=1, latency_s=0.06)
+    world = EvalPickupWorld(InProcessVehicle(seed=1, wind=WindConfig.off()), scenario, load_settings(), "none", True)
+    extra = [world.frame_latency_s() - 0.06 for _ in range(2000)]
+    assert 0.013 <= float(np.median(extra)) <= 0.018 and 0.018 <= float(np.percentile(extra, 95)) <= 0.024
+    got = await frames_handed_over(world, 2.0)
+    stamps = [s for _, s in got]
+    assert stamps == sorted(stamps) and len(stamps) >= 25
