@@ -106,6 +106,9 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dic
     world = EvalPickupWorld(vehicle, scenario, settings, sc["clutter"], cfg.full_frame_detection)
     table = load_mission("pickup")
     params = {"target_filter": cfg.target_filter, "sea_state": sc["sea_state"], "search_start_ne_m": start_ne_m}
+    if "drift_forecast_ne_mps" in sc:  # results.jsonl lines written before the forecast existed have none
+        drift = sc["drift_forecast_ne_mps"]
+        params["search_drift_ne_mps"] = (float(drift[0]), float(drift[1]))
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
     clock = LoopClock()
     events = EventLog(run_dir / "events.jsonl" if run_dir is not None else None)

@@ -225,6 +225,14 @@ class InProcessVehicle:
         result = self.stack.set_mode(t_s, mode, "pilot")
         self._check("pilot_set_mode", self._command(t_s, "DO_SET_MODE", result, mode, source="pilot"))
 
+    def pilot_kill(self) -> None:
+        """The pilot's emergency stop (RC kill switch / forced disarm): the motors stop wherever the vehicle is."""
+        t_s = self._advance()
+        self._check(
+            "pilot_kill",
+            self._command(t_s, "COMPONENT_ARM_DISARM", self.stack.disarm(t_s, force=True), None, source="pilot"),
+        )
+
     def autopilot_failsafe(self, flight_mode: FlightMode) -> None:
         """The autopilot switches mode on its own (a battery, RC- or link-loss failsafe): RTL or LAND."""
         mode = mode_for(self.stack.profile, flight_mode)

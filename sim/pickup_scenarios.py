@@ -8,7 +8,9 @@ whatever ``--runs`` is — so a run can be repeated anywhere (a local process, a
   gusts σ 10–30 % of the mean;
 - camera latency (capture → detection at the mission) 0–250 ms; pixel noise 0.3–1.0 px;
 - the object: the marker or the buoy (even odds), 40–80 m from home at any bearing; the search is centred where
-  it was reported (its start), and it drifts with the current and the waves from there;
+  it was reported (its start), and it drifts with the current and the waves from there; the search drifts with
+  the operator's forecast of the current (``drift_forecast_ne_mps``: the current plus an error of σ 0.1 m/s per
+  axis), given to both configurations;
 - clutter, half the runs: for the marker a same-ID glyph of the wrong size floating 3–6 m from it; for the buoy
   right-size glints on the sea (``sim.pickup_eval_world``);
 - the autopilot: PX4 or ArduPilot (``sim.airframes.SIM_PROFILES``), with an estimator error preset
@@ -36,6 +38,7 @@ LATENCY_S = (0.0, 0.25)
 PIXEL_NOISE_PX = (0.3, 1.0)
 OBJECT_DISTANCE_M = (40.0, 80.0)
 CLUTTER_ODDS = 0.5
+DRIFT_FORECAST_SIGMA_MPS = 0.1  # the operator's drift forecast: the current plus this error per axis
 PROFILES = ("px4", "ardupilot")
 ESTIMATOR_PRESETS = tuple(sorted(ESTIMATORS))  # perfect, gnss, px4-sih
 
@@ -70,11 +73,13 @@ def sample_scenario(seed: int, index: int, sea_state: int | None = None) -> dict
     bearing_rad = float(rng.uniform(0.0, 2.0 * math.pi))
     wind_mps = float(rng.uniform(*WIND_MPS))
     cluttered = bool(rng.random() < CLUTTER_ODDS)
-    return {
+    current_mps = round(float(rng.uniform(*CURRENT_MPS)), 3)
+    current_to_deg = round(float(rng.uniform(0.0, 360.0)), 1)
+    drawn = {
         "seed": world_seed,
         "sea_state": drawn_sea_state if sea_state is None else sea_state,
-        "current_mps": round(float(rng.uniform(*CURRENT_MPS)), 3),
-        "current_to_deg": round(float(rng.uniform(0.0, 360.0)), 1),
+        "current_mps": current_mps,
+        "current_to_deg": current_to_deg,
         "wind_mps": round(wind_mps, 2),
         "wind_from_deg": round(float(rng.uniform(0.0, 360.0)), 1),
         "gust_sigma_mps": round(wind_mps * float(rng.uniform(*GUST_FRACTION)), 3),
@@ -89,6 +94,14 @@ def sample_scenario(seed: int, index: int, sea_state: int | None = None) -> dict
         "profile": str(rng.choice(PROFILES)),
         "estimator": str(rng.choice(ESTIMATOR_PRESETS)),
     }
+    # drawn last, so every draw above stays what it was before the forecast existed
+    to_rad = math.radians(current_to_deg)
+    error_ne = rng.normal(0.0, DRIFT_FORECAST_SIGMA_MPS, 2)
+    drawn["drift_forecast_ne_mps"] = [
+        round(current_mps * math.cos(to_rad) + float(error_ne[0]), 3),
+        round(current_mps * math.sin(to_rad) + float(error_ne[1]), 3),
+    ]
+    return drawn
 
 
 def sample_scenarios(seed: int, runs: int, sea_state: int | None = None) -> list[dict[str, Any]]:

@@ -27,13 +27,16 @@ from app.settings import CameraSettings, DetectorSettings
 from sim.autopilot_endpoint import SimAutopilot
 from sim.camera_render_poses import Pose, camera_pose, object_pose
 from sim.camera_serve import CameraFrameServer
-from sim.pickup_world import PickupOutcome, PickupScenario, judge_grab
+from sim.pickup_world import PickupOutcome, PickupScenario, judge_grab, water_down_m
 from sim.radar import RadarEmulator
 from sim.radar_live import live_sea_emulator, truth_at_from_snapshots
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
 from sim.stack_types import Truth
 
 OBJECT_LOG_PERIOD_S = 0.1
+
+
+WATER_PERIOD_S = 1.0 / 30.0  # how often the water under the vehicle is looked up
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,7 @@ class PickupServer:
         self._lock = threading.Lock()
         self._gripper_closed = False
         self._next_object_log_s = 0.0
+        self._next_water_s = 0.0
         self._truth_at = truth_at_from_snapshots(sim.truth)
         self._camera_settings = camera
         self.camera: CameraFrameServer | None = None
@@ -122,6 +126,9 @@ class PickupServer:
                 grab = judge_grab(self.outcome, self.config.scenario, self.object, t_s, truth)
             self.sim.log("grab", t_s, **{k: v for k, v in grab.items() if k != "t_s"})
         self._gripper_closed = truth.gripper_closed
+        if t_s >= self._next_water_s:  # the vehicle meets the water on the waves (``water_down_m``)
+            self._next_water_s = t_s + WATER_PERIOD_S
+            self.sim.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, truth.pos_ned_m)
         if t_s >= self._next_object_log_s:
             self._next_object_log_s = t_s + OBJECT_LOG_PERIOD_S
             o = self.object.state(t_s)

@@ -131,6 +131,7 @@ class PickupWorld:
             o = self.object.state(t_s)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
+            self.vehicle.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, p)  # at the frame rate
             # the radar measures from its antenna, off the body origin by the lever arm
             r_ned_body = euler_zyx_to_matrix(truth.roll_rad, truth.pitch_rad, truth.yaw_rad)
             ant = np.asarray(p) + r_ned_body @ self.radar_arm_frd_m
@@ -194,6 +195,18 @@ class PickupWorld:
         if truth.gripper_closed and not self._gripper_closed:
             judge_grab(self.outcome, self.scenario, self.object, t_s, truth)
         self._gripper_closed = truth.gripper_closed
+
+
+DECK_RADIUS_M = 5.0  # around home the vehicle stands on the deck (down 0); beyond, on the sea
+
+
+def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any) -> float:
+    """Where the vehicle meets the water under it (down): the sea surface, crests and troughs included — a vehicle
+    come down onto the sea sits on the wave, not on a flat plane through its mean. Within ``DECK_RADIUS_M`` of
+    home: the deck, at home level."""
+    if math.hypot(float(pos_ned_m[0]), float(pos_ned_m[1])) <= DECK_RADIUS_M:
+        return 0.0
+    return -float(sea.surface_elevation_m(t_s, pos_ned_m[0], pos_ned_m[1]))
 
 
 def judge_grab(

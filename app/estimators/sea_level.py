@@ -13,11 +13,15 @@ with natural frequency ω = 1/τ and damping ζ:
 
 Waves well above ω are attenuated by about 2ζω/ω_wave: τ = 5 s leaves ±4 cm of a ±0.25 m sea-state-2
 swell at 1.8 rad/s. The first sample starts the level; a gap longer than ``max_gap_s`` starts it over.
+
+``crest_m`` is the highest the surface rose above that level within the last ``crest_window_s`` (a sliding
+maximum): how high a vehicle waiting over the sea must stay for a crest not to reach it.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 
@@ -29,9 +33,13 @@ class SeaLevelEstimate:
 
 
 class MeanSeaLevel:
-    def __init__(self, tau_s: float = 5.0, damping: float = 0.8, max_gap_s: float = 2.0) -> None:
+    def __init__(
+        self, tau_s: float = 5.0, damping: float = 0.8, max_gap_s: float = 2.0, crest_window_s: float = 60.0
+    ) -> None:
         if not tau_s > 0.0:
             raise ValueError(f"tau_s must be > 0, not {tau_s}")
+        self.crest_window_s = crest_window_s
+        self._rises: deque[tuple[float, float]] = deque()  # (t_s, rise above the level), decreasing rises
         self.omega = 1.0 / tau_s
         self.damping = damping
         self.max_gap_s = max_gap_s
@@ -52,10 +60,23 @@ class MeanSeaLevel:
         if dt_s <= 0.0:
             return
         e = surface_down_m - self._level
+        self._note_rise(t_s, -e)
         self._level += dt_s * (self._rate + 2.0 * self.damping * self.omega * e)
         self._rate += dt_s * self.omega**2 * e
         self._t_s = t_s
         self.samples += 1
+
+    def _note_rise(self, t_s: float, rise_m: float) -> None:
+        rises = self._rises
+        while rises and rises[-1][1] <= rise_m:
+            rises.pop()
+        rises.append((t_s, rise_m))
+        while rises[0][0] < t_s - self.crest_window_s:
+            rises.popleft()
+
+    def crest_m(self) -> float:
+        """The highest rise of the surface above the level in the last ``crest_window_s`` (0 without samples)."""
+        return max(0.0, self._rises[0][1]) if self._rises else 0.0
 
     def last(self) -> SeaLevelEstimate | None:
         """The level as of the last sample, however old (None before the first)."""

@@ -3,8 +3,9 @@
 ``MissionBridge`` owns a ``GroundLink`` and a running mission's ``MissionRunner``:
 
 - commands (on the event loop, through the link's dedupe and strict parsing): ``start`` → the runner's
-  ``request_start`` (only while waiting in WAIT_FOR_START; ``start_ne_m`` / ``search_radius_m`` become the
-  mission's ``search_start_ne_m`` / ``search_max_radius_m``, validated like the mission file); ``abort``,
+  ``request_start`` (only while waiting in WAIT_FOR_START; ``start_ne_m`` / ``search_radius_m`` / ``drift_ne_mps``
+  become the mission's ``search_start_ne_m`` / ``search_max_radius_m`` / ``search_drift_ne_mps``,
+  validated like the mission file); ``abort``,
   ``hold``, ``resume``, ``rtl`` → ``request``; ``authorize_land`` → ``authorize_land``. Each is accepted or
   rejected with the runner's reason, and a rejected one changes nothing. A pilot who has control rejects
   them all — checked by the runner when the command is handled, on the freshest mode the boundary knows.
@@ -68,6 +69,8 @@ class MissionBridge:
                     updates["search_start_ne_m"] = command.start_ne_m
                 if command.search_radius_m is not None:
                     updates["search_max_radius_m"] = command.search_radius_m
+                if command.drift_ne_mps is not None:
+                    updates["search_drift_ne_mps"] = command.drift_ne_mps
                 reason = r.request_start(**updates)
             case Abort() | Hold() | Resume() | Rtl():
                 reason = r.request(command.cmd)

@@ -113,6 +113,9 @@ class Start(_Command):
         | None
     ) = Field(None, description="search start point [north, east] from home, m")
     search_radius_m: float | None = Field(None, gt=0.0, le=5_000.0, description="search area radius, m")
+    drift_ne_mps: tuple[Annotated[float, Field(ge=-3.0, le=3.0)], Annotated[float, Field(ge=-3.0, le=3.0)]] | None = (
+        Field(None, description="the object's expected drift [north, east] (a current forecast), m/s")
+    )
 
 
 class Abort(_Command):

@@ -9,15 +9,24 @@ actions as one cancellable task: a takeover or an abort cancels them at their ne
 from __future__ import annotations
 
 import asyncio
+import math
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+from app.errors import VehicleError
+from app.messages import Autopilot, LandedState
 from app.missions.circle import CircleMission
 from app.missions.estimates import MissionModel
 from app.missions.params import MissionParams
 from app.missions.pickup import PickupEstimates
-from app.missions.pickup_targets import DescendTarget, ObjectTarget, SearchPattern, expanding_square
+from app.missions.pickup_targets import (
+    DescendTarget,
+    DriftingPoint,
+    ObjectTarget,
+    SearchPattern,
+    expanding_square,
+)
 from app.offboard.boundary import VehicleBoundary
 from app.offboard.setpoint_loop import FixedPoint, SetpointLoop
 
@@ -131,12 +140,22 @@ async def _reach_height(io: MissionIO, height_m: float) -> None:
         await asyncio.sleep(0.1)
 
 
+async def mark_search_datum(io: MissionIO) -> None:
+    """The mission starts: the object was at ``search_start_ne_m`` now (the ground station's start may move it),
+    drifting at ``search_drift_ne_mps`` from here on."""
+    p = io.params
+    _pickup(io).set_search_datum(p.search_start_ne_m, io.now_s(), p.search_drift_ne_mps)
+
+
 async def goto_search(io: MissionIO) -> None:
-    """Fly to the search centre (``search_start_ne_m``: the ground station's start may move it) at the search
-    height (above home)."""
+    """Fly to the search centre, drifting with the water since the mission started, at the search height (above
+    home)."""
     m, p = _pickup(io), io.params
-    m.search_centre_ne_m = n, e = p.search_start_ne_m
-    io.setpoints.engage(FixedPoint("search_start", (n, e, -p.search_altitude_m)))
+    if m.datum_t_s is None:  # resumed past TAKEOFF without a datum: from now
+        m.set_search_datum(p.search_start_ne_m, io.now_s(), p.search_drift_ne_mps)
+    target = DriftingPoint("search_start", m.search_centre_ne_m, -p.search_altitude_m, m.datum_t_s or 0.0,
+                           m.search_drift_ne_mps)  # fmt: skip
+    io.setpoints.engage(target)
 
 
 async def start_search(io: MissionIO) -> None:
@@ -144,8 +163,10 @@ async def start_search(io: MissionIO) -> None:
     m, p = _pickup(io), io.params
     m.restart_search_at_last_estimate()
     spacing_m = m.footprint_m(p.search_altitude_m) * (1.0 - p.search_overlap)
-    waypoints = expanding_square(m.search_centre_ne_m, spacing_m, p.search_max_radius_m)
-    m.search = SearchPattern(waypoints, -p.search_altitude_m, p.search_speed_mps, io.now_s())
+    # the pattern is laid around where the centre is now, and drifts on from here
+    now_s = io.now_s()
+    waypoints = expanding_square(m.search_centre_at(now_s), spacing_m, p.search_max_radius_m)
+    m.search = SearchPattern(waypoints, -p.search_altitude_m, p.search_speed_mps, now_s, m.search_drift_ne_mps)
     io.setpoints.engage(m.search)
 
 
@@ -155,7 +176,8 @@ async def start_approach(io: MissionIO) -> None:
 
 
 async def start_track(io: MissionIO) -> None:
-    io.setpoints.engage(ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.track_height_m))
+    target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.track_height_m)
+    await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 async def start_descend(io: MissionIO) -> None:
@@ -171,6 +193,9 @@ async def start_descend(io: MissionIO) -> None:
         p.descend_converged_s,
         p.final_height_m,
         p.final_radius_m,
+        p.final_abort_radius_m,
+        p.crest_margin_m,
+        p.descend_max_lead_m,
     )
     io.setpoints.engage(target, allow_below_min=True)
 
@@ -179,7 +204,8 @@ async def grab(io: MissionIO) -> None:
     """Close the gripper (MAV_CMD_DO_GRIPPER), staying on the water over the object meanwhile (it moves on the
     waves; without an estimate the loop holds where it is)."""
     m = _pickup(io)
-    m.grab_attempts += 1
+    pv = io.boundary.telemetry().pos_vel
+    m.on_grab((pv.pos_ned_m[0], pv.pos_ned_m[1]) if pv is not None else m.last_estimate_ne_m or (math.nan, math.nan))
     io.setpoints.engage(ObjectTarget(m, io.boundary.telemetry, 0.0), allow_below_min=True)
     await io.boundary.grip(True)
 
@@ -190,7 +216,70 @@ async def start_verify(io: MissionIO) -> None:
     if pv is None:
         return
     n, e, d = pv.pos_ned_m
-    io.setpoints.engage(FixedPoint("verify", (n, e, d - io.params.verify_height_m)), allow_below_min=True)
+    verify = FixedPoint("verify", (n, e, d - io.params.verify_height_m))
+    await _off_the_water(io, lambda: io.setpoints.engage(verify, allow_below_min=True), io.params.verify_height_m)
+
+
+WATER_WATCH_S = 5.0  # how long a climb from the water is watched for ArduCopter's land detector
+NEAR_WATER_M = 1.0  # a climb starting this close to the sea is watched
+TAKEOFF_ATTEMPTS = 3  # NAV_TAKEOFF from the water, tried this often (0.5 s apart) while still landed
+
+
+def _landed(io: MissionIO) -> bool:
+    ls = io.boundary.telemetry().landed_state
+    return ls is not None and ls.value is LandedState.ON_GROUND
+
+
+def _near_the_water(io: MissionIO) -> bool:
+    """Within ``NEAR_WATER_M`` of the sea by the radar, or by the altitude over the tracked mean sea."""
+    m, now_s = _pickup(io), io.now_s()
+    heights = (m.height_above_sea_m(now_s), m.height_over_mean_sea_m(now_s))
+    return any(h is not None and h <= NEAR_WATER_M for h in heights)
+
+
+async def _off_the_water(io: MissionIO, engage: Callable[[], None], climb_m: float) -> None:
+    """``engage`` the climb; on ArduPilot, watch it leave the water and take off when velocity will not do.
+
+    PX4 takes off in OFFBOARD when the setpoint climbs. ArduCopter does not: once its land detector has set
+    land_complete (it may do so a moment after the climb began, the vehicle still on the water), GUIDED's velocity
+    control keeps the motors at ground idle (and DISARM_DELAY runs), and only a NAV_TAKEOFF leaves the ground.
+    So on ArduPilot, while landed within ``WATER_WATCH_S``: leave offboard (zero velocity, then BRAKE — MAVSDK
+    would otherwise keep re-sending our setpoint, which cancels a guided takeoff), take off in GUIDED to
+    ``climb_m`` above where it sits (the altitude is above home), wait until it is off the water and that high,
+    take offboard again and ``engage`` once more. The state's timeout bounds the waits; an abort or a takeover
+    cancels them."""
+    engage()
+    if io.boundary.vehicle.autopilot is not Autopilot.ARDUPILOT or not (_landed(io) or _near_the_water(io)):
+        return
+    h0 = io.boundary.telemetry().height_above_home_m() or 0.0
+    t_end_s = io.now_s() + WATER_WATCH_S
+    while not _landed(io):
+        h = io.boundary.telemetry().height_above_home_m()
+        if io.now_s() >= t_end_s or (h is not None and h >= h0 + climb_m / 2.0):
+            return  # climbing on velocity setpoints: it was not landed
+        await asyncio.sleep(0.05)
+    target_m = max(h0 + climb_m, climb_m)
+    io.setpoints.disengage()
+    await io.boundary.leave_offboard("takeoff from the water (ArduPilot: NAV_TAKEOFF)")
+    for attempt in range(TAKEOFF_ATTEMPTS):
+        try:
+            await io.boundary.takeoff(target_m)
+            break
+        except VehicleError:
+            if not _landed(io):  # a trough took the water away meanwhile: flying again, velocity will do
+                await io.boundary.start_offboard()
+                engage()
+                return
+            if attempt + 1 == TAKEOFF_ATTEMPTS:
+                raise
+            await asyncio.sleep(0.5)
+    while True:
+        h = io.boundary.telemetry().height_above_home_m()
+        if not _landed(io) and h is not None and h >= target_m - io.params.altitude_tolerance_m:
+            break
+        await asyncio.sleep(0.1)
+    await io.boundary.start_offboard()
+    engage()
 
 
 async def confirm_pickup(io: MissionIO) -> None:
@@ -206,12 +295,14 @@ async def lift(io: MissionIO) -> None:
     pv = io.boundary.telemetry().pos_vel
     if pv is None:
         return
-    io.setpoints.engage(FixedPoint("lift", (pv.pos_ned_m[0], pv.pos_ned_m[1], -io.params.lift_altitude_m)))
+    lift = FixedPoint("lift", (pv.pos_ned_m[0], pv.pos_ned_m[1], -io.params.lift_altitude_m))
+    await _off_the_water(io, lambda: io.setpoints.engage(lift), io.params.verify_height_m)
 
 
 async def return_home(io: MissionIO) -> None:
     home = io.boundary.telemetry().home_ned_m or (0.0, 0.0, 0.0)
-    io.setpoints.engage(FixedPoint("home", (home[0], home[1], home[2] - io.params.return_altitude_m)))
+    target = FixedPoint("home", (home[0], home[1], home[2] - io.params.return_altitude_m))
+    await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 ACTIONS: dict[str, ActionSpec] = {
@@ -224,6 +315,7 @@ ACTIONS: dict[str, ActionSpec] = {
     "hold": ActionSpec(hold, ("autopilot",)),
     "stop_and_hold": ActionSpec(stop_and_hold, None),
     "calibrate_radar": ActionSpec(calibrate_radar, ("offboard",), "pickup"),
+    "mark_search_datum": ActionSpec(mark_search_datum, None, "pickup"),
     "goto_search": ActionSpec(goto_search, ("offboard",), "pickup"),
     "start_search": ActionSpec(start_search, ("offboard",), "pickup"),
     "start_approach": ActionSpec(start_approach, ("offboard",), "pickup"),

@@ -145,6 +145,16 @@ def touchdown(ctx: GuardContext) -> bool:
     return landed or radar_low or mean_low
 
 
+def touchdown_off_target(ctx: GuardContext) -> bool:
+    """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, or without one: no
+    grab there — climb back and try again."""
+    if not touchdown(ctx):
+        return False
+    t = ctx.estimates.target
+    d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
+    return d is None or d > ctx.params.grab_max_offset_m
+
+
 def grab_settled(ctx: GuardContext) -> bool:
     return ctx.time_in_state_s >= GRAB_SETTLE_S
 
@@ -153,7 +163,13 @@ def _seen_on_sea(ctx: GuardContext) -> bool:
     """Up at the verify height, the camera still fixes the object on the sea: the grab missed it."""
     h = ctx.estimates.height_above_sea_m
     up = h is not None and h >= ctx.params.verify_height_m - 0.5
-    return up and ctx.time_in_state_s >= 0.5 and _fresh(ctx)
+    return up and ctx.time_in_state_s >= 0.5 and (_fresh(ctx) or _sighted_where_grabbed(ctx, ctx.params.fix_fresh_s))
+
+
+def _sighted_where_grabbed(ctx: GuardContext, within_s: float) -> bool:
+    """The object seen on the sea (the right size, whether or not the filter took it) near where the last grab
+    was, within the last ``within_s``."""
+    return ctx.estimates.progress.get("grab_sighting_age_s", math.inf) <= within_s
 
 
 def grab_failed(ctx: GuardContext) -> bool:
@@ -170,7 +186,8 @@ def object_in_gripper(ctx: GuardContext) -> bool:
     e, h = ctx.estimates, ctx.estimates.height_above_sea_m
     up = h is not None and h >= ctx.params.verify_height_m - 0.5
     no_fix_since_grab = e.fix_age_s is None or e.fix_age_s >= ctx.time_in_state_s
-    return up and ctx.time_in_state_s >= ctx.params.verify_time_s and no_fix_since_grab
+    unseen = no_fix_since_grab and not _sighted_where_grabbed(ctx, ctx.time_in_state_s)
+    return up and ctx.time_in_state_s >= ctx.params.verify_time_s and unseen
 
 
 def disarmed_with_object(ctx: GuardContext) -> bool:
@@ -218,6 +235,7 @@ GUARDS: dict[str, Guard] = {
         grab_failed_finally,
         object_in_gripper,
         disarmed_with_object,
+        touchdown_off_target,
         at_lift_altitude,
         above_home,
         radar_calibration_done,

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 Pair = tuple[float, float]
+Drift = Annotated[float, Field(ge=-3.0, le=3.0)]  # a drift component, m/s
 
 
 class MissionParams(BaseModel):
@@ -46,6 +47,11 @@ class MissionParams(BaseModel):
     calibrate_attempts: int = Field(3, ge=1, le=10, description="heights tried for the background map, count")
     calibrate_climb_m: float = Field(3.0, ge=0.5, le=30.0, description="each further attempt this much higher, m")
     search_start_ne_m: Pair = Field((40.0, 20.0), description="centre of the search pattern, NE of home, m")
+    search_drift_ne_mps: tuple[Drift, Drift] = Field(
+        (0.0, 0.0),
+        description="the object's expected drift (current and leeway, e.g. a forecast), NE, m/s: the search centre "
+        "moves with it from the mission's start",
+    )
     search_altitude_m: float = Field(10.0, ge=3.0, le=60.0, description="search height above home, m")
     search_speed_mps: float = Field(2.0, ge=0.2, le=10.0, description="speed along the search pattern, m/s")
     search_overlap: float = Field(0.3, ge=0.0, le=0.8, description="overlap of neighbouring camera footprints")
@@ -69,6 +75,18 @@ class MissionParams(BaseModel):
     )
     final_radius_m: float = Field(
         0.1, ge=0.01, le=5.0, description="… within this of the estimate (else wait at that height), m"
+    )
+    final_abort_radius_m: float = Field(
+        0.2, ge=0.02, le=5.0, description="below the final height, this far off the estimate climbs back to it, m"
+    )
+    crest_margin_m: float = Field(
+        0.3, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
+    )
+    descend_max_lead_m: float = Field(
+        0.5, ge=0.1, le=5.0, description="the desired height leads the vehicle's own down by at most this, m"
+    )
+    grab_max_offset_m: float = Field(
+        0.15, ge=0.02, le=2.0, description="at the water farther than this from the estimate: no grab, climb back, m"
     )
     land_authorization: bool = Field(
         False, description="descend onto the object only after an operator's authorize_land (thesis), true/false"

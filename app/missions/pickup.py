@@ -82,6 +82,7 @@ class FixChecks:
     confirm_radius_m: float = 0.5
     height_max_age_s: float = 0.5  # a radar height older than this is not used
     converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
+    grab_sighting_radius_m: float = 1.0  # after a grab, the object seen this close to it on the sea: missed
 
 
 def polygon_area(corners: ArrayLike) -> float:
@@ -154,7 +155,12 @@ class PickupEstimates:
         self._last_fix_t_s: float | None = None
         self._candidates: deque[TargetObservation] = deque()
         self._converged_since_s: float | None = None
-        self.search_centre_ne_m = search_centre_ne_m  # where SEARCH searches; moves to the last estimate on a loss
+        # where SEARCH searches, at ``datum_t_s`` (moves to the last estimate on a loss), drifting at
+        # ``search_drift_ne_mps`` from then on
+        self.search_centre_ne_m = search_centre_ne_m
+        self.datum_t_s: float | None = None
+        self.search_drift_ne_mps: tuple[float, float] = (0.0, 0.0)
+        self.last_estimate_t_s: float | None = None
         self.search: SearchPattern | None = None
         self.last_estimate_ne_m: tuple[float, float] | None = None
         self.fix_times_s: deque[float] = deque(maxlen=100_000)  # capture times of the fused fixes
@@ -163,6 +169,8 @@ class PickupEstimates:
         self.fix_log: deque[tuple[float, float, float, str]] = deque(maxlen=1000)
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
+        self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
+        self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
         self.picked_up = False
         self.radar_calibrator: RadarCalibrator | None = None  # registered by the radar task when there is one
         self.radar_calibration: str | None = None  # None while pending; "ok", "skipped: …", "failed: …"
@@ -172,9 +180,26 @@ class PickupEstimates:
         cam = self.tri.camera
         return height_m * min(cam.width_px / cam.fx_px, cam.height_px / cam.fy_px)
 
+    def on_grab(self, vehicle_ne_m: tuple[float, float]) -> None:
+        """A grab at ``vehicle_ne_m``: sightings of the object on the sea near there from now on mean it missed."""
+        self.grab_attempts += 1
+        self.grab_ne_m = vehicle_ne_m
+        self._grab_sighting_t_s = None
+
+    def set_search_datum(self, centre_ne_m: tuple[float, float], t_s: float, drift_ne_mps: tuple[float, float]) -> None:
+        """The object was at ``centre_ne_m`` at ``t_s`` and drifts at ``drift_ne_mps`` (an expectation)."""
+        self.search_centre_ne_m, self.datum_t_s, self.search_drift_ne_mps = centre_ne_m, t_s, drift_ne_mps
+
+    def search_centre_at(self, t_s: float) -> tuple[float, float]:
+        """Where the search centre has drifted to by ``t_s``."""
+        (n, e), (vn, ve) = self.search_centre_ne_m, self.search_drift_ne_mps
+        dt_s = 0.0 if self.datum_t_s is None else max(0.0, t_s - self.datum_t_s)
+        return n + vn * dt_s, e + ve * dt_s
+
     def restart_search_at_last_estimate(self) -> None:
         if self.last_estimate_ne_m is not None:
             self.search_centre_ne_m = self.last_estimate_ne_m
+            self.datum_t_s = self.last_estimate_t_s
 
     # ---- inputs -------------------------------------------------------------------------------
 
@@ -328,6 +353,9 @@ class PickupEstimates:
             return self._reject("size")
         obs = fix.observation
         n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]
+        g = self.grab_ne_m
+        if g is not None and math.hypot(n_m - g[0], e_m - g[1]) <= c.grab_sighting_radius_m:
+            self._grab_sighting_t_s = t_s  # the right size, on the sea where we grabbed: the grab missed it
         if not self.filter.initialised or self.filter.estimate(t_s) is None:
             if not self._confirmed(obs):
                 self.fix_log.append((t_s, n_m, e_m, "confirming"))
@@ -392,11 +420,14 @@ class PickupEstimates:
             self._converged_since_s = None
         if est is not None:
             self.last_estimate_ne_m = (est.pos_ned_m[0], est.pos_ned_m[1])
+            self.last_estimate_t_s = t_s
+        centre_n_m, centre_e_m = self.search_centre_at(t_s)
         progress = {
-            "search_centre_n_m": self.search_centre_ne_m[0],
-            "search_centre_e_m": self.search_centre_ne_m[1],
+            "search_centre_n_m": centre_n_m,
+            "search_centre_e_m": centre_e_m,
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
             "grab_attempts": float(self.grab_attempts),
+            "grab_sighting_age_s": math.inf if self._grab_sighting_t_s is None else t_s - self._grab_sighting_t_s,
             "picked_up": 1.0 if self.picked_up else 0.0,
             "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
         }

@@ -44,16 +44,44 @@ def expanding_square(
     return pts
 
 
+class DriftingPoint:
+    """A point at ``down_m`` that was at ``ne_m`` at ``t0_s`` and drifts at ``drift_ne_mps`` (the search's start)."""
+
+    def __init__(
+        self, name: str, ne_m: tuple[float, float], down_m: float, t0_s: float, drift_ne_mps: tuple[float, float]
+    ) -> None:
+        self.name, self.ne_m, self.down_m, self.t0_s, self.drift_ne_mps = name, ne_m, down_m, t0_s, drift_ne_mps
+
+    def target_at(self, t_s: float) -> TargetState:
+        (n, e), (vn, ve) = self.ne_m, self.drift_ne_mps
+        dt_s = max(0.0, t_s - self.t0_s)
+        return TargetState(t_s, (n + vn * dt_s, e + ve * dt_s, self.down_m), (vn, ve, 0.0))
+
+    def observe(self, sample: PositionVelocityNed) -> None:
+        pass
+
+
 class SearchPattern:
+    """``waypoints`` (around the centre where it was at ``datum_t_s``) flown at ``speed_mps`` from ``t0_s``, the
+    whole pattern drifting at ``drift_ne_mps`` with the water the object floats in."""
+
     name = "search"
 
     def __init__(
-        self, waypoints: list[tuple[float, float]], altitude_down_m: float, speed_mps: float, t0_s: float
+        self,
+        waypoints: list[tuple[float, float]],
+        altitude_down_m: float,
+        speed_mps: float,
+        t0_s: float,
+        drift_ne_mps: tuple[float, float] = (0.0, 0.0),
+        datum_t_s: float | None = None,
     ) -> None:
         self.waypoints = waypoints
         self.down_m = altitude_down_m
         self.speed_mps = speed_mps
         self.t0_s = t0_s
+        self.drift_ne_mps = drift_ne_mps
+        self.datum_t_s = t0_s if datum_t_s is None else datum_t_s
         self._cum = [0.0]
         for a, b in itertools.pairwise(waypoints):
             self._cum.append(self._cum[-1] + math.hypot(b[0] - a[0], b[1] - a[1]))
@@ -66,6 +94,12 @@ class SearchPattern:
         return (t_s - self.t0_s) * self.speed_mps >= self.length_m
 
     def target_at(self, t_s: float) -> TargetState:
+        still = self._still_target_at(t_s)
+        (vn, ve), dt_s = self.drift_ne_mps, max(0.0, t_s - self.datum_t_s)
+        (n, e, d), (wn, we, wd) = still.pos_ned_m, still.vel_ned_mps
+        return TargetState(t_s, (n + vn * dt_s, e + ve * dt_s, d), (wn + vn, we + ve, wd))
+
+    def _still_target_at(self, t_s: float) -> TargetState:
         s = min(max(0.0, (t_s - self.t0_s) * self.speed_mps), self.length_m)
         i = max(0, min(len(self._cum) - 2, next((k for k, c in enumerate(self._cum) if c > s), len(self._cum)) - 1))
         if len(self.waypoints) < 2:
@@ -114,6 +148,16 @@ class ObjectTarget:
 
 
 class DescendTarget(ObjectTarget):
+    """Down at ``speed_mps`` over the object while the fix is fresh and the filter converged; else back up to
+    (and waiting at) ``safety_height_m``.
+
+    The final part — below ``final_height_m``, raised to clear the highest recent crest by ``crest_margin_m``
+    (``MeanSeaLevel.crest_m``: a vehicle waiting lower is met by a crest wherever it is) — is flown only right
+    over the object: it starts within ``final_radius_m`` of the estimate and, drifting past
+    ``final_abort_radius_m``, climbs back to the final height and waits again. The desired height never leads
+    the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
+    would otherwise come down at the envelope's full speed."""
+
     name = "descend"
 
     def __init__(
@@ -127,6 +171,9 @@ class DescendTarget(ObjectTarget):
         converged_s: float,
         final_height_m: float = 0.0,
         final_radius_m: float = math.inf,
+        final_abort_radius_m: float = math.inf,
+        crest_margin_m: float = 0.0,
+        max_lead_m: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m)
         self.speed_mps = speed_mps
@@ -135,8 +182,16 @@ class DescendTarget(ObjectTarget):
         self.converged_s = converged_s
         self.final_height_m = final_height_m
         self.final_radius_m = final_radius_m
+        self.final_abort_radius_m = max(final_abort_radius_m, final_radius_m)
+        self.crest_margin_m = crest_margin_m
+        self.max_lead_m = max_lead_m
         self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
+        self.go_arounds = 0  # final descents given up for drifting off the object
+        self.plunging = False  # in the final part, right over the object
         self._t_s: float | None = None
+
+    def final_height_now_m(self) -> float:
+        return max(self.final_height_m, self.model.sea_level.crest_m() + self.crest_margin_m)
 
     def target_at(self, t_s: float) -> TargetState | None:
         dt_s = 0.0 if self._t_s is None else max(0.0, t_s - self._t_s)
@@ -148,22 +203,37 @@ class DescendTarget(ObjectTarget):
         # and the sea is known: the radar sees it, or (under its first range, near the water) its mean level
         # was tracked moments ago
         good = good and (snap.height_above_sea_m is not None or snap.height_over_mean_sea_m is not None)
-        if good and self.height_m <= self.final_height_m and not self._over_the_object(t_s):
-            self.waits += 1  # the last part only right over the object: wait (at this height) until it is
-        elif good:
-            self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
-        else:  # climb back to (and wait at) the safety height
+        final_m = self.final_height_now_m()
+        if not good:  # climb back to (and wait at) the safety height
             self.height_m = max(self.height_m, self.safety_height_m)
+            self.plunging = False
+        elif self.height_m <= final_m:
+            off_m = self._off_the_object_m(t_s)
+            if self.plunging and off_m > self.final_abort_radius_m:
+                self.plunging = False
+                self.go_arounds += 1
+            elif not self.plunging and off_m <= self.final_radius_m:
+                self.plunging = True
+            if self.plunging:
+                self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
+            else:
+                self.waits += 1  # the last part only right over the object: wait at the final height until it is
+                self.height_m = final_m
+        else:
+            self.height_m = max(final_m, self.height_m - self.speed_mps * dt_s)
+        vehicle_m = snap.height_over_mean_sea_m
+        if vehicle_m is not None and self.height_m < vehicle_m - self.max_lead_m:
+            self.height_m = vehicle_m - self.max_lead_m  # not far ahead of the vehicle on the way down
         # aim at the object now, its velocity fed forward: aiming at a prediction of it at touchdown (up to 1 s
         # ahead) put the vehicle up to half a wave orbit off and lost the marker low (sea state 2: 0 of 3
         # seeds picked up with the lead, 20 of 20 without)
         return self._aim(t_s, self.height_m)
 
-    def _over_the_object(self, t_s: float) -> bool:
+    def _off_the_object_m(self, t_s: float) -> float:
         pv, est = self.telemetry().pos_vel, self.model.estimate(t_s)
         if pv is None or est is None:
-            return False
-        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m) <= self.final_radius_m
+            return math.inf
+        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m)
 
 
 def horizontal_distance_m(a: Vec3, b: Vec3) -> float:

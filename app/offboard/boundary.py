@@ -11,7 +11,8 @@ Every command and every setpoint the app sends goes through ``VehicleBoundary``;
 - **One owner of offboard.** ``start_offboard`` marks us the owner; every way of leaving it on our own
   account (``leave_offboard``: state change, ABORT, FAILED, exception, cancellation, a second signal) sends
   zero velocity for ``exit_zero_s``, then HOLD — as one task, shielded from cancellation and bounded by
-  ``exit_timeout_s``. A takeover ends ownership without sending anything.
+  ``exit_timeout_s``. A takeover ends ownership without sending anything, and so does a disarmed vehicle
+  (only MAVSDK's re-sent setpoint is zeroed).
 - **The envelope and finiteness** on every setpoint: velocity through ``apply_envelope`` at the latest
   position, yaw finite (else the last yaw sent); no position → zero velocity.
 - **The setpoint watchdog** (``app.offboard.watchdog``), fed with every setpoint, engaged while we own
@@ -307,9 +308,22 @@ class VehicleBoundary:
         """Zero velocity for ``exit_zero_s``, then HOLD — if we own offboard. Shielded and bounded."""
         if not self.owns_offboard or self.authority is Authority.PILOT:
             return
+        armed = self.telemetry().armed
+        if self._leaving is None and armed is not None and not armed.value:
+            self._disowned_disarmed(reason)
+            return
         if self._leaving is None:
             self._leaving = asyncio.get_running_loop().create_task(self._leave(reason), name="offboard.leave")
         await shielded(self._leaving, self.params.exit_timeout_s)
+
+    def _disowned_disarmed(self, reason: str) -> None:
+        """The vehicle is disarmed (a kill switch, an auto-disarm): nothing to stop and no mode to change — a mode
+        command now would only override whoever disarmed it. MAVSDK's re-sent setpoint becomes zero velocity,
+        so nothing stale flies if it is armed again in OFFBOARD."""
+        self.vehicle.zero_velocity_now(self.yaw_rad)
+        self.owns_offboard = False
+        self.watchdog.disengage()
+        self._events.write(self._clock.now_s(), "run", event="leave_offboard", reason=reason, action="none_disarmed")
 
     async def _leave(self, reason: str) -> None:
         p = self.params

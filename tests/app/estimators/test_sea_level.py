@@ -51,3 +51,17 @@ def test_bad_samples_change_nothing_and_a_gap_starts_over():
     level.update(20.0, 4.0)
     est = level.estimate(20.0)
     assert est is not None and est.down_m == 4.0 and est.rate_mps == 0.0
+
+
+def test_the_crest_is_the_highest_rise_above_the_level_within_the_window():
+    level = MeanSeaLevel(tau_s=5.0, crest_window_s=30.0)
+    assert level.crest_m() == 0.0
+    # a sea-state-3 swell: ±0.6 m at 1.2 rad/s (down positive: a crest is a smaller down)
+    feed(level, lambda t: 2.0 - 0.6 * math.sin(1.2 * t), 120.0)
+    crest = level.crest_m()
+    print(f"crest {crest:.3f} m over the level")
+    assert 0.55 <= crest <= 0.75  # the swell's amplitude, plus what the level moves with it
+    # the sea calms: the old crests leave the window, and only the new ones count
+    for t_s in np.arange(120.0, 200.0, 1.0 / 15.0):
+        level.update(float(t_s), 2.0 - 0.1 * math.sin(1.2 * t_s))
+    assert 0.08 <= level.crest_m() <= 0.2

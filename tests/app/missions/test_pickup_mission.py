@@ -15,14 +15,18 @@ from app.eventlog import EventLog
 from app.flight import fly_mission
 from app.missions.table import load_mission
 from app.settings import load_settings
+from sim.airframes import SIM_PROFILES
 from sim.inproc import InProcessVehicle
 from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
 
 
-async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, **params):
+async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, profile: str = "px4", **params):
     settings = load_settings()
-    vehicle = InProcessVehicle(seed=scenario.seed, wind=wind)
+    calibrated = SIM_PROFILES[profile]
+    vehicle = InProcessVehicle(
+        seed=scenario.seed, wind=wind, profile=calibrated.autopilot, vehicle_params=calibrated.airframe
+    )
     world = PickupWorld(vehicle, scenario, settings)
     table = load_mission("pickup")
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
@@ -168,3 +172,29 @@ async def test_radar_calibration_climbs_higher_when_the_sea_is_still_in_range_an
     else:
         assert world.calibrations == 0 and calibration.count("the sea is in range") == p.calibrate_attempts
     assert flight.result.outcome == "picked_up"  # with or without the map
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_on_ardupilot_it_takes_off_from_the_water_with_nav_takeoff_and_brings_the_object_home():
+    """ArduCopter's GUIDED keeps a landed vehicle at ground idle whatever velocity it is sent (and DISARM_DELAY
+    runs): after the grab the mission leaves offboard (zero velocity, then BRAKE), takes off with NAV_TAKEOFF and
+    takes GUIDED back. Checked from the vehicle's side."""
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
+    flight, world, _ = await fly_pickup(scenario, WindConfig.off(), profile="ardupilot")
+    recs = world.vehicle.records
+    print(flight.result.states_visited, world.outcome.grabs)
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+    grab_s = next(r["t_s"] for r in recs if r["event"] == "command" and r["command"] == "DO_GRIPPER")
+    after = [r for r in recs if r["t_s"] >= grab_s and r["event"] != "setpoint"]
+    landed_s = next(r["t_s"] for r in after if r["event"] == "landed_state" and r["landed_state"] == "ON_GROUND")
+    brake_s = next(r["t_s"] for r in after if r["event"] == "mode" and r.get("autopilot_mode") == "BRAKE")
+    takeoff_s = next(r["t_s"] for r in after if r["event"] == "command" and r["command"] == "NAV_TAKEOFF")
+    airborne_s = next(r["t_s"] for r in after if r["event"] == "landed_state" and r["landed_state"] == "IN_AIR")
+    assert landed_s < brake_s <= takeoff_s < airborne_s < landed_s + 5.0
+    # the setpoints just before BRAKE were zero velocity (leaving offboard on our own account)
+    last_sp = [r for r in recs if r["event"] == "setpoint" and r["t_s"] <= brake_s][-1]
+    assert max(abs(v) for v in last_sp["vel_ned_mps"]) == 0.0, last_sp
+    # it never disarmed on the water: the only disarm is the landing at home
+    disarms = [r for r in recs if r["event"] == "armed" and not r["armed"]]
+    assert len(disarms) == 1 and disarms[0]["t_s"] > airborne_s + 10.0
+    assert flight.result.states_visited[-3:] == ["RETURN", "LAND_HOME", "DONE"]

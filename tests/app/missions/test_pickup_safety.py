@@ -189,3 +189,21 @@ async def test_abort_while_held_ends_in_hold_and_stays_there():
     flight, vehicle, _ = await fly_until("SEARCH", hold_then_abort, scenario)
     assert flight.result.states_visited[-3:] == ["SEARCH", "HOLD", "ABORT"]
     assert flight.result.outcome == "aborted" and vehicle.truth().flight_mode is FlightMode.HOLD
+
+
+@LOOPTIME
+async def test_a_vehicle_disarmed_in_flight_ends_the_mission_and_is_sent_nothing_more():
+    """The pilot's kill switch in TRACK (or an autopilot's auto-disarm on the water): the mission ends in
+    DISARMED (failed) at once, and from the vehicle's side no command or mode change follows the disarm — only
+    the re-sent setpoint, zeroed."""
+    flight, vehicle, t_s = await fly_until("TRACK", lambda runner, v: v.pilot_kill(), PickupScenario(seed=1, **CALM))
+    print(flight.result, [r for r in vehicle.records if r["t_s"] >= t_s and r["event"] != "setpoint"])
+    assert flight.result.outcome == "failed" and flight.result.final_state == "DISARMED"
+    assert flight.result.states_visited[-2:] == ["TRACK", "DISARMED"]
+    after = [r for r in vehicle.records if r["t_s"] >= t_s]
+    kill = next(r for r in after if r["event"] == "command")
+    assert kill["command"] == "COMPONENT_ARM_DISARM" and kill["source"] == "pilot"
+    assert [r for r in after if r["event"] in ("command", "mode") and r is not kill] == []
+    sent = [r for r in after if r["event"] == "setpoint"]
+    print(sent[-3:])
+    assert sent[-1]["vel_ned_mps"] == [0.0, 0.0, 0.0] and sent[-1]["origin"] == "watchdog"

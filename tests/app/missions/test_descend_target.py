@@ -1,0 +1,99 @@
+"""DESCEND's desired height, tick by tick: the final part is flown only right over the object, from a height a
+crest cannot reach, and the desired height does not run away from a vehicle that lags it.
+
+The estimates are the real ``PickupEstimates``' pieces a ``DescendTarget`` reads (snapshot, estimate, the mean
+sea and its crests), fed by hand here so each rule can be driven on its own."""
+
+from __future__ import annotations
+
+import math
+
+from app.estimators.sea_level import MeanSeaLevel
+from app.messages import PositionVelocityNed, TargetEstimate, TelemetrySnapshot
+from app.missions.estimates import Estimates
+from app.missions.pickup_targets import DescendTarget
+
+DT = 0.02
+
+
+class Scene:
+    """The object at the origin, the mean sea at down 0 (with a crest history), the vehicle where put."""
+
+    def __init__(self, crest_m: float = 0.0) -> None:
+        self.sea_level = MeanSeaLevel(tau_s=5.0)
+        for k in range(600):  # 40 s of a swell whose crests rise ``crest_m`` over the mean
+            t_s = k / 15.0
+            self.sea_level.update(t_s, -crest_m * math.sin(1.2 * t_s))
+        self.vehicle_ne = (0.0, 0.0)
+        self.vehicle_height_m = 4.0
+
+    # -- what DescendTarget reads --
+    def snapshot(self, t_s: float) -> Estimates:
+        return Estimates(
+            t_s, fix_age_s=0.05, converged_for_s=5.0, height_above_sea_m=None,
+            height_over_mean_sea_m=self.vehicle_height_m,
+        )  # fmt: skip
+
+    def estimate(self, t_s: float) -> TargetEstimate:
+        return TargetEstimate(t_s, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), ((0.01, 0.0), (0.0, 0.01)))
+
+    def sea_reference(self, t_s: float) -> tuple[float, float]:
+        return 0.0, 0.0
+
+    def telemetry(self) -> TelemetrySnapshot:
+        n, e = self.vehicle_ne
+        return TelemetrySnapshot(pos_vel=PositionVelocityNed(0.0, (n, e, -self.vehicle_height_m), (0.0, 0.0, 0.0)))
+
+
+def descend(scene: Scene, **kw) -> DescendTarget:
+    params = dict(speed_mps=0.5, safety_height_m=2.0, fresh_s=0.5, converged_s=2.0, final_height_m=1.0,
+                  final_radius_m=0.1, final_abort_radius_m=0.2, crest_margin_m=0.3, max_lead_m=0.5)  # fmt: skip
+    return DescendTarget(scene, scene.telemetry, 4.0, **(params | kw))  # type: ignore[arg-type]
+
+
+def fly(target: DescendTarget, scene: Scene, t0_s: float, seconds: float, follow: bool = True) -> float:
+    """Tick for ``seconds``; the vehicle follows the desired height exactly (``follow``) or stays put."""
+    t_s = t0_s
+    for _ in range(round(seconds / DT)):
+        t_s += DT
+        state = target.target_at(t_s)
+        assert state is not None
+        if follow:
+            scene.vehicle_height_m = -state.pos_ned_m[2]
+    return t_s
+
+
+def test_it_waits_above_the_highest_crest_until_it_is_over_the_object():
+    scene = Scene(crest_m=0.9)  # sea state 3: crests 0.9 m over the mean
+    target = descend(scene)
+    scene.vehicle_ne = (0.3, 0.0)  # off the object
+    t_s = fly(target, scene, 100.0, 10.0)
+    final_m = target.final_height_now_m()
+    print(f"final height {final_m:.2f} m (crest {scene.sea_level.crest_m():.2f} m)")
+    assert 1.15 <= final_m <= 1.3  # crest + 0.3 m, above the 1 m of the parameter
+    assert target.height_m == final_m and not target.plunging and target.waits > 0
+    scene.vehicle_ne = (0.05, 0.0)  # over it now: the last part goes down
+    fly(target, scene, t_s, 4.0)
+    assert target.plunging and target.height_m == 0.0
+
+
+def test_drifting_off_the_object_low_climbs_back_to_the_final_height():
+    scene = Scene(crest_m=0.2)
+    target = descend(scene)
+    t_s = fly(target, scene, 100.0, 7.0)  # over the object: down through the final height
+    assert target.plunging and 0.0 < target.height_m < 1.0
+    scene.vehicle_ne = (0.15, 0.0)  # past the final radius but within the abort radius: on down
+    low_m = target.height_m
+    t_s = fly(target, scene, t_s, 0.2)
+    assert target.plunging and target.height_m < low_m
+    scene.vehicle_ne = (0.25, 0.0)  # past the abort radius: back up, and a go-around counted
+    fly(target, scene, t_s, 0.1)
+    assert not target.plunging and target.go_arounds == 1 and target.height_m == target.final_height_now_m()
+
+
+def test_the_desired_height_leads_a_lagging_vehicle_by_at_most_the_lead():
+    scene = Scene()
+    target = descend(scene)
+    scene.vehicle_height_m = 3.5  # the vehicle does not follow
+    fly(target, scene, 100.0, 3.0, follow=False)
+    assert target.height_m == 3.0  # 3.5 − 0.5, not the 2.5 m the 0.5 m/s ramp would have reached
