@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 
 import numpy as np
@@ -198,3 +199,19 @@ async def test_on_ardupilot_it_takes_off_from_the_water_with_nav_takeoff_and_bri
     disarms = [r for r in recs if r["event"] == "armed" and not r["armed"]]
     assert len(disarms) == 1 and disarms[0]["t_s"] > airborne_s + 10.0
     assert flight.result.states_visited[-3:] == ["RETURN", "LAND_HOME", "DONE"]
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_the_search_drifts_with_the_forecast_current_and_finds_an_object_it_would_miss_standing_still():
+    """A 0.9 m/s current carries the object ~35 m from where it was reported before the vehicle gets there (and
+    farther while it searches): a search standing on the report never sees it; one drifting with the forecast
+    current (here 10 % slow and 10° off) finds it and picks it up."""
+    to_rad = math.radians(70.0)
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.9, current_to_deg=60.0)
+    forecast = (0.81 * math.cos(to_rad), 0.81 * math.sin(to_rad))
+    drifting, world, _ = await fly_pickup(scenario, WindConfig.off(), search_drift_ne_mps=forecast)
+    print(drifting.result.states_visited, world.outcome.grabs)
+    assert drifting.result.outcome == "picked_up" and world.outcome.caught
+    standing, world, _ = await fly_pickup(scenario, WindConfig.off())
+    print(standing.result)
+    assert standing.result.outcome == "failed" and "APPROACH" not in standing.result.states_visited
