@@ -10,7 +10,8 @@ The result's fields: ``run``, ``seed``, ``scenario``, ``config``, ``outcome`` (t
 ``failed``, ``aborted``, ``pilot`` — or ``timeout`` past ``RUN_LIMIT_S`` of mission time, ``error`` if the run
 raised), ``final_state``, ``touchdown_error_m`` (gripper to object, horizontal, from the truth: the grab that
 caught it, else the last grab; None without a grab), ``time_to_pickup_s`` (arming → the grab that caught it),
-``retries``, ``grabs``, ``abort_reason`` (None when picked up: else the transition that gave up — ``STATE→STATE:
+``retries``, ``grabs``, ``caught`` (the simulator's truth: a grab caught the object),
+``abort_reason`` (None when picked up: else the transition that gave up — ``STATE→STATE:
 reason`` — or the error), ``envelope_violations`` (setpoints outside the speed envelope or not finite, as the
 vehicle received them: ``sim.safety_rules``' ``finite_in_envelope``), ``safety_violations`` (every rule broken),
 ``off_target_touchdowns`` (grabs farther than the scenario's capture radius from the object), ``mission_s``,
@@ -75,7 +76,7 @@ def run_pickup(scenario: dict[str, Any], config: str, run: int = 0, run_dir: str
 def _empty(outcome: str, reason: str) -> dict[str, Any]:
     return {
         "outcome": outcome, "final_state": None, "touchdown_error_m": None, "time_to_pickup_s": None, "retries": 0,
-        "grabs": 0, "abort_reason": reason, "envelope_violations": 0, "safety_violations": [],
+        "grabs": 0, "abort_reason": reason, "envelope_violations": 0, "safety_violations": [], "caught": False,
         "off_target_touchdowns": 0, "mission_s": 0.0, "fixes_rejected": {}, "clutter": {},
     }  # fmt: skip
 
@@ -149,6 +150,7 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dic
         "abort_reason": None if outcome == "picked_up" else _gave_up(states, reason),
         "envelope_violations": sum(1 for v in violations if v.rule == "finite_in_envelope"),
         "safety_violations": sorted({v.rule for v in violations}),
+        "caught": bool(caught),
         "off_target_touchdowns": sum(1 for g in grabs if g["error_m"] > scenario.capture_radius_m),
         "mission_s": round(end_s - t0_s, 2),
         "fixes_rejected": dict(sorted(figures.get("fixes_rejected", {}).items())),

@@ -20,23 +20,29 @@ def _pct(values: Sequence[float], q: float) -> float | None:
 
 
 def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict[str, Any]:
-    """Per configuration: runs, success rate, touchdown error p50/p95/max (runs that touched down), time to
+    """Per configuration: runs, success rate (picked up by the mission's word *and* the simulator's truth; a
+    mission that says picked_up with an empty gripper is a ``false_pickups``), touchdown error p50/p95/max
+    (runs that touched down), time to
     pickup, off-target touchdowns, envelope and safety violations, aborts by reason, speed-up over real time
     (mission time over the runs' own wall time); and ``ratio_p95`` = the first configuration's p95 over the
     second's."""
     out: dict[str, Any] = {"configs": {}}
     for name in configs:
         rs = [r for r in results if r["config"] == name]
-        picked = [r for r in rs if r["outcome"] == "picked_up"]
+        # success from the truth: the mission said picked_up *and* a grab caught the object (lines written before
+        # ``caught`` existed count on the mission's word)
+        picked = [r for r in rs if r["outcome"] == "picked_up" and r.get("caught", True)]
+        false_pickups = [r for r in rs if r["outcome"] == "picked_up" and not r.get("caught", True)]
         errors = [r["touchdown_error_m"] for r in rs if r["touchdown_error_m"] is not None]
         times = [r["time_to_pickup_s"] for r in picked if r["time_to_pickup_s"] is not None]
         wall_s = sum(r["wall_s"] for r in rs)
         by_sea: dict[str, list[int]] = {}
         for r in rs:
-            by_sea.setdefault(str(r["scenario"]["sea_state"]), []).append(r["outcome"] == "picked_up")
+            by_sea.setdefault(str(r["scenario"]["sea_state"]), []).append(r in picked)
         out["configs"][name] = {
             "runs": len(rs),
             "picked_up": len(picked),
+            "false_pickups": len(false_pickups),  # the mission said picked_up, the gripper was empty
             "success_rate": round(len(picked) / len(rs), 4) if rs else None,
             "touchdown_p50_m": _pct(errors, 50),
             "touchdown_p95_m": _pct(errors, 95),
@@ -83,7 +89,10 @@ def table(summary: dict[str, Any]) -> str:
         rows.append(f"ratio p95 {names[0]}/{names[1]}: {summary['ratio_p95']:.2f}")
     for name, c in cs.items():
         by_sea = ", ".join(f"SS{k} {100 * v:.0f}%" for k, v in c["success_by_sea_state"].items())
-        rows.append(f"{name}: outcomes {c['outcomes']}; success by sea state: {by_sea}")
+        rows.append(
+            f"{name}: outcomes {c['outcomes']}; success by sea state: {by_sea}; "
+            f"false pickups (said picked_up, gripper empty): {c['false_pickups']}"
+        )
         for reason, n in c["aborts_by_reason"].items():
             rows.append(f"  {n:4d}  {reason}")
     return "\n".join(rows)

@@ -64,6 +64,7 @@ def test_every_result_line_is_well_formed(evaluation):
             assert isinstance(r[k], int) and r[k] >= 0, k
         assert r["retries"] == max(0, r["grabs"] - 1) and r["off_target_touchdowns"] <= r["grabs"]
         assert isinstance(r["safety_violations"], list) and isinstance(r["fixes_rejected"], dict)
+        assert isinstance(r["caught"], bool) and (not r["caught"] or r["grabs"] >= 1)
         assert r["mission_s"] > 30.0 and 0.0 < r["wall_s"] < r["mission_s"]  # virtual time: faster than real
     print([(r["config"], r["outcome"], r["touchdown_error_m"], r["abort_reason"]) for r in results])
     assert any(r["outcome"] == "picked_up" for r in results)
@@ -79,7 +80,9 @@ def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
     for name, c in doc["configs"].items():
         rs = [r for r in evaluation["results"] if r["config"] == name]
         errs = [r["touchdown_error_m"] for r in rs if r["touchdown_error_m"] is not None]
-        assert c["runs"] == RUNS and c["success_rate"] == sum(r["outcome"] == "picked_up" for r in rs) / RUNS
+        success = sum(r["outcome"] == "picked_up" and r["caught"] for r in rs)
+        assert c["runs"] == RUNS and c["success_rate"] == success / RUNS
+        assert c["false_pickups"] == sum(r["outcome"] == "picked_up" and not r["caught"] for r in rs)
         assert c["touchdown_p50_m"] == (round(float(np.percentile(errs, 50)), 4) if errs else None)
         assert c["touchdown_p95_m"] == (round(float(np.percentile(errs, 95)), 4) if errs else None)
         assert c["off_target_touchdowns"] == sum(r["off_target_touchdowns"] for r in rs)
