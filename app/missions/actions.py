@@ -153,7 +153,8 @@ async def goto_search(io: MissionIO) -> None:
     m, p = _pickup(io), io.params
     if m.datum_t_s is None:  # resumed past TAKEOFF without a datum: from now
         m.set_search_datum(p.search_start_ne_m, io.now_s(), p.search_drift_ne_mps)
-    target = DriftingPoint("search_start", m.search_centre_ne_m, -p.search_altitude_m, m.datum_t_s or 0.0,
+    assert m.datum_t_s is not None
+    target = DriftingPoint("search_start", m.search_centre_ne_m, -p.search_altitude_m, m.datum_t_s,
                            m.search_drift_ne_mps)  # fmt: skip
     io.setpoints.engage(target)
 

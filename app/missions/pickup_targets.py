@@ -62,8 +62,8 @@ class DriftingPoint:
 
 
 class SearchPattern:
-    """``waypoints`` (around the centre where it was at ``datum_t_s``) flown at ``speed_mps`` from ``t0_s``, the
-    whole pattern drifting at ``drift_ne_mps`` with the water the object floats in."""
+    """``waypoints`` (around where the centre is at ``t0_s``) flown at ``speed_mps`` from ``t0_s``, the whole
+    pattern drifting at ``drift_ne_mps`` from then on with the water the object floats in."""
 
     name = "search"
 
@@ -74,14 +74,12 @@ class SearchPattern:
         speed_mps: float,
         t0_s: float,
         drift_ne_mps: tuple[float, float] = (0.0, 0.0),
-        datum_t_s: float | None = None,
     ) -> None:
         self.waypoints = waypoints
         self.down_m = altitude_down_m
         self.speed_mps = speed_mps
         self.t0_s = t0_s
         self.drift_ne_mps = drift_ne_mps
-        self.datum_t_s = t0_s if datum_t_s is None else datum_t_s
         self._cum = [0.0]
         for a, b in itertools.pairwise(waypoints):
             self._cum.append(self._cum[-1] + math.hypot(b[0] - a[0], b[1] - a[1]))
@@ -95,7 +93,7 @@ class SearchPattern:
 
     def target_at(self, t_s: float) -> TargetState:
         still = self._still_target_at(t_s)
-        (vn, ve), dt_s = self.drift_ne_mps, max(0.0, t_s - self.datum_t_s)
+        (vn, ve), dt_s = self.drift_ne_mps, max(0.0, t_s - self.t0_s)
         (n, e, d), (wn, we, wd) = still.pos_ned_m, still.vel_ned_mps
         return TargetState(t_s, (n + vn * dt_s, e + ve * dt_s, d), (wn + vn, we + ve, wd))
 
