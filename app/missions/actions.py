@@ -25,6 +25,7 @@ from app.missions.pickup_targets import (
     DriftingPoint,
     ObjectTarget,
     SearchPattern,
+    VerifyTarget,
     expanding_square,
 )
 from app.offboard.boundary import VehicleBoundary
@@ -212,13 +213,22 @@ async def grab(io: MissionIO) -> None:
 
 
 async def start_verify(io: MissionIO) -> None:
-    """Climb ``verify_height_m`` straight up from the water: a caught object leaves the camera's sea."""
+    """Climb ``verify_height_m`` from the water over the object's estimate (``VerifyTarget``): a caught object
+    leaves the camera's sea, a missed one is seen drifting on. Notes when
+    it is up there (``verify_up_t_s``): ``object_in_gripper`` wants ``verify_time_s`` of looking from that height."""
     pv = io.boundary.telemetry().pos_vel
     if pv is None:
         return
-    n, e, d = pv.pos_ned_m
-    verify = FixedPoint("verify", (n, e, d - io.params.verify_height_m))
+    m = _pickup(io)
+    verify = VerifyTarget(m, io.boundary.telemetry, io.params.verify_height_m, (pv.pos_ned_m[0], pv.pos_ned_m[1]))
     await _off_the_water(io, lambda: io.setpoints.engage(verify, allow_below_min=True), io.params.verify_height_m)
+    m.verify_up_t_s = None
+    while True:  # up (by the radar, as the guards judge it) since when: VERIFY looks from there
+        h = m.height_above_sea_m(io.now_s())
+        if h is not None and h >= io.params.verify_height_m - 0.5:
+            m.verify_up_t_s = io.now_s()
+            return
+        await asyncio.sleep(0.05)
 
 
 WATER_WATCH_S = 5.0  # how long a climb from the water is watched for ArduCopter's land detector

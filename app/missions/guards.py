@@ -141,7 +141,10 @@ def touchdown(ctx: GuardContext) -> bool:
     e, limit_m = ctx.estimates, ctx.params.touchdown_height_m
     landed = ctx.telemetry.landed_state is not None and ctx.telemetry.landed_state.value is LandedState.ON_GROUND
     radar_low = e.height_above_sea_m is not None and e.height_above_sea_m <= limit_m
-    mean_low = e.height_over_mean_sea_m is not None and e.height_over_mean_sea_m <= limit_m
+    # the mean sea only while the radar reads nothing (the sea inside its first range): when it does read the sea,
+    # that is where the water is — over a trough the vehicle is still well above it at "0.3 m over the mean"
+    mean_m = e.height_over_mean_sea_m
+    mean_low = e.height_above_sea_m is None and mean_m is not None and mean_m <= limit_m
     return landed or radar_low or mean_low
 
 
@@ -182,12 +185,14 @@ def grab_failed_finally(ctx: GuardContext) -> bool:
 
 
 def object_in_gripper(ctx: GuardContext) -> bool:
-    """Up at the verify height for ``verify_time_s`` and no fix of the object on the sea since the climb began."""
+    """Up at the verify height for ``verify_time_s`` (looking: the camera's footprint there holds where the grab
+    was) and no fix or sighting of the object on the sea since the climb began."""
     e, h = ctx.estimates, ctx.estimates.height_above_sea_m
     up = h is not None and h >= ctx.params.verify_height_m - 0.5
+    looked = e.progress.get("verify_up_for_s", -1.0) >= ctx.params.verify_time_s
     no_fix_since_grab = e.fix_age_s is None or e.fix_age_s >= ctx.time_in_state_s
     unseen = no_fix_since_grab and not _sighted_where_grabbed(ctx, ctx.time_in_state_s)
-    return up and ctx.time_in_state_s >= ctx.params.verify_time_s and unseen
+    return up and looked and unseen
 
 
 def disarmed_with_object(ctx: GuardContext) -> bool:

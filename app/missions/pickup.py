@@ -171,6 +171,7 @@ class PickupEstimates:
         self.grab_attempts = 0
         self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
         self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
+        self.verify_up_t_s: float | None = None  # after the grab, up at the verify height since
         self.picked_up = False
         self.radar_calibrator: RadarCalibrator | None = None  # registered by the radar task when there is one
         self.radar_calibration: str | None = None  # None while pending; "ok", "skipped: …", "failed: …"
@@ -185,6 +186,7 @@ class PickupEstimates:
         self.grab_attempts += 1
         self.grab_ne_m = vehicle_ne_m
         self._grab_sighting_t_s = None
+        self.verify_up_t_s = None
 
     def set_search_datum(self, centre_ne_m: tuple[float, float], t_s: float, drift_ne_mps: tuple[float, float]) -> None:
         """The object was at ``centre_ne_m`` at ``t_s`` and drifts at ``drift_ne_mps`` (an expectation)."""
@@ -428,6 +430,7 @@ class PickupEstimates:
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
             "grab_attempts": float(self.grab_attempts),
             "grab_sighting_age_s": math.inf if self._grab_sighting_t_s is None else t_s - self._grab_sighting_t_s,
+            "verify_up_for_s": -1.0 if self.verify_up_t_s is None else t_s - self.verify_up_t_s,
             "picked_up": 1.0 if self.picked_up else 0.0,
             "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
         }

@@ -145,6 +145,27 @@ class ObjectTarget:
         pass
 
 
+class VerifyTarget(ObjectTarget):
+    """After a grab: up to ``height_m`` over the sea, horizontally over the object's estimate while there is one
+    (a missed object drifts on, and the camera must still have it in view to see that it missed), else where
+    the estimate was last (at first: ``start_ne_m``, where the grab was)."""
+
+    name = "verify"
+
+    def __init__(
+        self, model: PickupEstimates, telemetry: Telemetry, height_m: float, start_ne_m: tuple[float, float]
+    ) -> None:
+        super().__init__(model, telemetry, height_m)
+        self.last_ne_m = start_ne_m
+
+    def target_at(self, t_s: float) -> TargetState:
+        aim = self._aim(t_s, self.height_m)
+        if aim is not None:
+            self.last_ne_m = (aim.pos_ned_m[0], aim.pos_ned_m[1])
+            return aim
+        return TargetState(t_s, (*self.last_ne_m, self._sea(t_s)[0] - self.height_m), (0.0, 0.0, 0.0))
+
+
 class DescendTarget(ObjectTarget):
     """Down at ``speed_mps`` over the object while the fix is fresh and the filter converged; else back up to
     (and waiting at) ``safety_height_m``.

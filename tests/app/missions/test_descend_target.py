@@ -11,7 +11,7 @@ import math
 from app.estimators.sea_level import MeanSeaLevel
 from app.messages import PositionVelocityNed, TargetEstimate, TelemetrySnapshot
 from app.missions.estimates import Estimates
-from app.missions.pickup_targets import DescendTarget
+from app.missions.pickup_targets import DescendTarget, VerifyTarget
 
 DT = 0.02
 
@@ -97,3 +97,13 @@ def test_the_desired_height_leads_a_lagging_vehicle_by_at_most_the_lead():
     scene.vehicle_height_m = 3.5  # the vehicle does not follow
     fly(target, scene, 100.0, 3.0, follow=False)
     assert target.height_m == 3.0  # 3.5 − 0.5, not the 2.5 m the 0.5 m/s ramp would have reached
+
+
+def test_verify_follows_the_estimate_up_and_stays_where_it_was_last_when_it_is_gone():
+    scene = Scene()
+    target = VerifyTarget(scene, scene.telemetry, 3.0, (5.0, 5.0))  # type: ignore[arg-type]
+    state = target.target_at(100.0)
+    assert state.pos_ned_m == (0.0, 0.0, -3.0)  # over the object's estimate (at the origin), 3 m over the sea
+    scene.estimate = lambda t_s: None  # type: ignore[method-assign]  # the lock timed out
+    state = target.target_at(101.0)
+    assert state.pos_ned_m == (0.0, 0.0, -3.0) and state.vel_ned_mps == (0.0, 0.0, 0.0)

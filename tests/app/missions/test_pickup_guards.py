@@ -1,0 +1,56 @@
+"""The pickup's touchdown and verify guards on hand-made snapshots: when the water counts as reached, when a
+grab counts as off target, and when the object counts as in the gripper."""
+
+from __future__ import annotations
+
+from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot
+from app.missions.estimates import Estimates
+from app.missions.guards import GuardContext, object_in_gripper, touchdown, touchdown_off_target
+from app.missions.table import load_mission
+from app.offboard.boundary import LinkHealth
+
+PARAMS = load_mission("pickup").params  # touchdown 0.3 m, grab offset 0.15 m, verify 3 m for 2 s
+
+
+def ctx(estimates: Estimates, vehicle_ne=(0.0, 0.0), time_in_state_s: float = 5.0, state: str = "DESCEND"):
+    n, e = vehicle_ne
+    tel = TelemetrySnapshot(pos_vel=PositionVelocityNed(10.0, (n, e, -0.3), (0.0, 0.0, 0.0)))
+    health = LinkHealth(10.0, 0.1, 0.01, 0.01, 0, 0)
+    return GuardContext(10.0, state, time_in_state_s, tel, health, PARAMS, estimates, abort_requested=False)
+
+
+def est(**kw) -> Estimates:
+    target = TargetState(10.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    return Estimates(10.0, target=target, fix_age_s=0.1, converged_for_s=3.0, **kw)
+
+
+def test_the_mean_sea_counts_only_while_the_radar_reads_nothing():
+    # 0.25 m over the mean sea, but the radar sees the water 0.9 m below (a trough): not there yet
+    assert not touchdown(ctx(est(height_above_sea_m=0.9, height_over_mean_sea_m=0.25)))
+    # the radar reads nothing (the sea inside its first range) and the mean is that close: at the water
+    assert touchdown(ctx(est(height_above_sea_m=None, height_over_mean_sea_m=0.25)))
+    assert touchdown(ctx(est(height_above_sea_m=0.25, height_over_mean_sea_m=0.8)))
+    assert not touchdown(ctx(est(height_above_sea_m=None, height_over_mean_sea_m=0.6)))
+
+
+def test_at_the_water_off_the_estimate_is_no_grab():
+    low = est(height_above_sea_m=None, height_over_mean_sea_m=0.2)
+    assert not touchdown_off_target(ctx(low, vehicle_ne=(0.1, 0.0)))
+    assert touchdown_off_target(ctx(low, vehicle_ne=(0.2, 0.0)))
+    assert touchdown_off_target(ctx(Estimates(10.0, height_over_mean_sea_m=0.2)))  # no estimate at all
+    assert not touchdown_off_target(ctx(est(height_above_sea_m=1.5), vehicle_ne=(0.5, 0.0)))  # not at the water
+
+
+def test_in_the_gripper_only_after_looking_from_up_there_for_the_verify_time():
+    def verify(up_for_s: float, fix_age_s: float | None = None, sighting_age_s: float = float("inf")):
+        e = Estimates(
+            10.0, fix_age_s=fix_age_s, height_above_sea_m=3.0,
+            progress={"verify_up_for_s": up_for_s, "grab_sighting_age_s": sighting_age_s},
+        )  # fmt: skip
+        return object_in_gripper(ctx(e, time_in_state_s=6.0, state="VERIFY"))
+
+    assert verify(up_for_s=2.5)
+    assert not verify(up_for_s=1.0)  # 6 s in VERIFY, but most of it spent climbing: not looked long enough
+    assert not verify(up_for_s=-1.0)  # never got up there
+    assert not verify(up_for_s=2.5, fix_age_s=0.5)  # a fix of the object on the sea since the climb began
+    assert not verify(up_for_s=2.5, sighting_age_s=3.0)  # seen where the grab was (no lock needed)
