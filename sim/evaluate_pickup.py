@@ -48,6 +48,7 @@ from sim.pickup_world import PickupScenario
 from sim.safety_rules import RunFacts, check
 from sim.wind import WindConfig
 
+EVAL_GEOFENCE_M = 400.0  # the evaluation's geofence radius around home (``_fly``)
 RUN_LIMIT_S = 1500.0  # mission time; the table's own timeouts end every run well before
 NOOP_CYCLES = 2  # the looptime loop's setting (as the tests and sim.faults)
 OUTCOMES = ("picked_up", "failed", "aborted", "pilot", "timeout", "error")
@@ -83,6 +84,10 @@ def _empty(outcome: str, reason: str) -> dict[str, Any]:
 
 async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dict[str, Any]:
     settings = load_settings()
+    # the operator sets the fence around the operating area: the objects start 40-80 m out and drift up to 1 m/s
+    # for minutes (the default 100 m fence stops the vehicle following most of the faster ones)
+    envelope = settings.envelope.model_copy(update={"geofence_radius_m": EVAL_GEOFENCE_M})
+    settings = settings.model_copy(update={"envelope": envelope})
     profile = SIM_PROFILES[sc["profile"]]
     wind = WindConfig(mean_mps=sc["wind_mps"], from_deg=sc["wind_from_deg"], gust_sigma_mps=sc["gust_sigma_mps"])
     vehicle = InProcessVehicle(
