@@ -32,6 +32,7 @@ class GuardContext:
     abort_requested: bool
     start_given: bool = True  # the ground station said start (True when there is none)
     land_authorized: bool = True  # the operator authorised the landing (True when none is needed)
+    geofence_radius_m: float = math.inf  # the envelope's fence around home (the vehicle cannot go past it)
 
 
 Guard = Callable[[GuardContext], bool]
@@ -158,6 +159,24 @@ def touchdown_off_target(ctx: GuardContext) -> bool:
     return d is None or d > ctx.params.grab_max_offset_m
 
 
+FENCE_MARGIN_M = 2.0  # an object this close to the fence (or beyond) counts as beyond reach
+
+
+def object_beyond_fence(ctx: GuardContext) -> bool:
+    """The object's estimate — or, without one, the drifting search centre — lies beyond the geofence (less
+    ``FENCE_MARGIN_M``): the vehicle cannot go there, so searching or following on is pointless."""
+    home = ctx.telemetry.home_ned_m or (0.0, 0.0, 0.0)
+    t = ctx.estimates.target
+    if t is not None:
+        n, e = t.pos_ned_m[0], t.pos_ned_m[1]
+    else:
+        p = ctx.estimates.progress
+        if "search_centre_n_m" not in p:
+            return False
+        n, e = p["search_centre_n_m"], p["search_centre_e_m"]
+    return math.hypot(n - home[0], e - home[1]) > ctx.geofence_radius_m - FENCE_MARGIN_M
+
+
 def grab_settled(ctx: GuardContext) -> bool:
     return ctx.time_in_state_s >= GRAB_SETTLE_S
 
@@ -241,6 +260,7 @@ GUARDS: dict[str, Guard] = {
         object_in_gripper,
         disarmed_with_object,
         touchdown_off_target,
+        object_beyond_fence,
         at_lift_altitude,
         above_home,
         radar_calibration_done,

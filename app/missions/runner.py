@@ -250,6 +250,7 @@ class MissionRunner:
             abort_requested=self._abort_requested,
             start_given=self.start_given,
             land_authorized=self.land_authorized or not self.params.land_authorization,
+            geofence_radius_m=b.params.limits.geofence_radius_m,
         )
         if not ctx.land_authorized:
             self._note_awaiting_authorization(ctx, spec)

@@ -3,9 +3,17 @@ grab counts as off target, and when the object counts as in the gripper."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot
 from app.missions.estimates import Estimates
-from app.missions.guards import GuardContext, object_in_gripper, touchdown, touchdown_off_target
+from app.missions.guards import (
+    GuardContext,
+    object_beyond_fence,
+    object_in_gripper,
+    touchdown,
+    touchdown_off_target,
+)
 from app.missions.table import load_mission
 from app.offboard.boundary import LinkHealth
 
@@ -54,3 +62,17 @@ def test_in_the_gripper_only_after_looking_from_up_there_for_the_verify_time():
     assert not verify(up_for_s=-1.0)  # never got up there
     assert not verify(up_for_s=2.5, fix_age_s=0.5)  # a fix of the object on the sea since the climb began
     assert not verify(up_for_s=2.5, sighting_age_s=3.0)  # seen where the grab was (no lock needed)
+
+
+def test_an_object_beyond_the_geofence_is_beyond_reach():
+    def beyond(target_ne=None, centre_ne=(0.0, 0.0), fence_m=100.0) -> bool:
+        target = None if target_ne is None else TargetState(10.0, (*target_ne, 0.0), (0.0, 0.0, 0.0))
+        progress = {"search_centre_n_m": centre_ne[0], "search_centre_e_m": centre_ne[1]}
+        c = ctx(Estimates(10.0, target=target, progress=progress), state="SEARCH")
+        return object_beyond_fence(dataclasses.replace(c, geofence_radius_m=fence_m))
+
+    assert beyond(target_ne=(60.0, 80.0))  # 100 m out: on the fence
+    assert not beyond(target_ne=(60.0, 70.0))
+    assert beyond(centre_ne=(0.0, 99.0))  # no estimate: where the search has drifted to
+    assert not beyond(centre_ne=(0.0, 97.0))
+    assert not beyond(target_ne=(60.0, 80.0), fence_m=400.0)
