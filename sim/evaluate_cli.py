@@ -5,7 +5,8 @@
 configuration (``--compare thesis,seapick``; default ``seapick``) — the same scenarios for each — on ``--jobs``
 local processes or on the Dask cluster at ``--dask``. A progress bar goes to stderr; ``DIR`` (default
 ``runs/eval-<seed>``) gets ``results.jsonl`` (a line per run, ``sim.evaluate_pickup``), ``summary.json``,
-``report.png`` and ``index.html``. On stdout: the summary table, or with ``--json`` one JSON object (per
+``report.png`` and ``index.html`` (while it runs, ``results.partial.jsonl`` gets each result as it comes in, so a
+run that dies keeps what it flew). On stdout: the summary table, or with ``--json`` one JSON object (per
 configuration runs, success_rate, touchdown_p50_m, touchdown_p95_m, off_target_touchdowns, envelope_violations,
 speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's p95 over the second's).
 """
@@ -26,6 +27,7 @@ from sim.evaluate_pickup import Job, Progress, run_jobs
 from sim.evaluate_report import summarise, table, write_index_html, write_report_png
 from sim.pickup_scenarios import CONFIGS, sample_scenarios
 
+PARTIAL_RESULTS = "results.partial.jsonl"  # results as they come in, removed once results.jsonl is written
 DASK_ADDRESS = re.compile(r"^(tcp|tls|inproc|ucx)://\S+$")
 
 
@@ -78,11 +80,22 @@ def main(argv: list[str] | None = None) -> int:
             jobs.append((sc, config, i, run_dir))
     wall0 = time.perf_counter()
     progress = None if args.no_progress else Progress(len(jobs))
-    results = run_jobs(jobs, args.jobs, args.dask, progress)
+    # each result is on disk as soon as it is in (completion order): an evaluation that dies keeps what it flew
+    partial = out / PARTIAL_RESULTS
+    with partial.open("w") as pf:
+
+        def on_result(r: dict[str, Any]) -> None:
+            pf.write(json.dumps(r) + "\n")
+            pf.flush()
+            if progress is not None:
+                progress(r)
+
+        results = run_jobs(jobs, args.jobs, args.dask, on_result)
     wall_s = time.perf_counter() - wall0
-    with (out / "results.jsonl").open("w") as f:
+    with (out / "results.jsonl").open("w") as f:  # in job order
         for r in results:
             f.write(json.dumps(r) + "\n")
+    partial.unlink()
     summary = summarise(results, args.compare)
     summary |= {
         "seed": args.seed,

@@ -17,6 +17,7 @@ import pytest
 
 from app.missions.pickup_feeds import PickupFeeds
 from app.settings import load_settings
+from sim import evaluate_cli
 from sim.evaluate_pickup import OUTCOMES, run_jobs
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
@@ -182,3 +183,21 @@ async def test_full_frame_detection_hands_frames_over_later_and_in_order():
     got = await frames_handed_over(world, 2.0)
     stamps = [s for _, s in got]
     assert stamps == sorted(stamps) and len(stamps) >= 25
+
+
+def test_results_are_on_disk_as_they_come_in_and_an_evaluation_that_dies_keeps_them(tmp_path, monkeypatch, evaluation):
+    """Each result is appended to results.partial.jsonl when it arrives; a finished evaluation removes it (its
+    results.jsonl holds them all), one that dies half-way leaves the lines flown so far."""
+    assert not (evaluation["out"] / evaluate_cli.PARTIAL_RESULTS).exists()
+    flown = evaluation["results"][:3]
+
+    def dies_after_three(jobs, processes, dask_address, progress):
+        for r in flown:
+            progress(r)
+        raise KeyboardInterrupt  # the machine went away
+
+    monkeypatch.setattr(evaluate_cli, "run_jobs", dies_after_three)
+    with pytest.raises(KeyboardInterrupt):
+        evaluate_cli.main([*CLI, "--no-progress", "--out", str(tmp_path)])
+    kept = [json.loads(x) for x in (tmp_path / evaluate_cli.PARTIAL_RESULTS).read_text().splitlines()]
+    assert kept == flown and not (tmp_path / "results.jsonl").exists()
