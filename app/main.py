@@ -3,10 +3,11 @@
 Composition root: load settings and the mission table (both validated before anything connects), connect
 MAVSDK, build the sensors (the pickup's camera and radar: the simulator's or the real ones) and the ground
 station's link, fly the mission (``app.flight.fly_mission``: everything in one TaskGroup), and leave a run
-directory with ``summary.json``, ``events.jsonl`` and (pickup) ``report.png``. ``--sim`` starts the simulated
-autopilot (``python -m sim.autopilot``; for the pickup also the sea, the object, the camera and the radar) as
-a separate process and connects MAVSDK to it over real UDP. Exit code 0 when the mission completed; otherwise
-1 with a one-line reason (2 for invalid input).
+directory with ``summary.json``, ``events.jsonl``, ``run.mcap`` and, for the pickup, ``report.png`` and
+``camera/`` (a frame a second for ``run.mcap``). ``--sim`` starts the simulated autopilot (``python -m
+sim.autopilot``; for the pickup also the sea, the object, the camera and the radar) as a separate process and
+connects MAVSDK to it over real UDP. Exit code 0 when the mission completed; otherwise 1 with a one-line reason
+(2 for invalid input).
 """
 
 from __future__ import annotations
@@ -33,9 +34,11 @@ from app.clock import Clock, PreciseClock
 from app.errors import AppError, ConfigError
 from app.eventlog import EventLog
 from app.flight import Flight, fly_mission
+from app.foxglove_log import write_mcap
 from app.gcs.config import GcsSettings
 from app.missions.pickup_feeds import Producer, camera_producer, radar_producer, radar_task_for
 from app.missions.runner import model_name
+from app.missions.sensor_log import CameraFrameLog, RadarProfileLog
 from app.missions.table import SUCCESS, MissionTable, load_mission
 from app.report import render_report
 from app.settings import Settings, load_settings
@@ -46,6 +49,7 @@ SIM_NICE = 5  # the simulator's niceness above the app's
 VEHICLE_ID = "drone1"  # the ground station's topic tree, seapick/<vehicle id>/v1/…, when none is given
 SPEED = number(0.0, 30.0, "m/s")
 UDP_PORT = number(0, 65535, "(UDP port)", int)
+TCP_PORT = number(0, 65535, "(TCP port)", int)
 
 
 SIM_PROFILES = ("px4", "px4-sih", "ardupilot")  # sim.airframes.SIM_PROFILES (the simulator is another process)
@@ -67,6 +71,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "(default: the settings' gcs section; none: it starts by itself)",
     )
     p.add_argument("--vehicle-id", default=None, help=f"topic tree seapick/<id>/v1/… (default {VEHICLE_ID})")
+    p.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="serve the run live to the Foxglove app on ws://127.0.0.1:PORT (the channels of the run's run.mcap)",
+    )
+    p.add_argument("--foxglove-port", type=TCP_PORT, default=8765, help="port for --foxglove (default 8765; 0: any)")
     sim = p.add_argument_group("simulator (with --sim)")
     sim.add_argument("--wind-mps", type=SPEED, default=None, help="mean wind speed, m/s (sim default 5)")
     sim.add_argument("--gust-mps", type=SPEED, default=None, help="gust standard deviation, m/s (sim default 1)")
@@ -186,26 +196,49 @@ async def connect_and_fly(
 
     route_mavsdk_log(run_dir / "mavsdk.log")
     clock = PreciseClock()  # real time: wakes on time (the 50 Hz setpoints), not up to 1 ms late
-    sensors = pickup_sensors(settings, clock, sim_sensors) if model_name(table) == "pickup" else []
+    pickup = model_name(table) == "pickup"
+    sensors = pickup_sensors(settings, clock, sim_sensors, SensorLogs.into(run_dir, events)) if pickup else []
     async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
         return await fly_mission(vehicle, table, settings, clock, events, sensors=sensors, ground=ground)
 
 
-def pickup_sensors(settings: Settings, clock: Clock, sim: SimSensors | None) -> list[Producer]:
-    """The pickup's camera and radar tasks: the simulator's (a socket, a pty) or the real ones from settings."""
+@dataclass(frozen=True)
+class SensorLogs:
+    """What the pickup's sensors leave in the run directory for ``run.mcap``: decimated camera frames (JPEG files
+    and ``camera`` records) and radar profiles (``radar_profile`` records)."""
+
+    camera: CameraFrameLog | None = None
+    radar: RadarProfileLog | None = None
+
+    @classmethod
+    def into(cls, run_dir: Path, events: EventLog) -> SensorLogs:
+        return cls(CameraFrameLog(run_dir, events), RadarProfileLog(events))
+
+
+def pickup_sensors(
+    settings: Settings, clock: Clock, sim: SimSensors | None, logs: SensorLogs | None = None
+) -> list[Producer]:
+    """The pickup's camera and radar tasks: the simulator's (a socket, a pty) or the real ones from settings; with
+    ``logs``, each keeps some of what it measured in the run directory."""
     from app.sensors.camera_socket import open_socket_camera
     from app.sensors.camera_v4l2 import open_v4l2_camera
     from app.sensors.detect import make_detector
 
+    logs = logs or SensorLogs()
     detector = make_detector(settings.detector, settings.camera)
     if sim is not None:
         size = (settings.camera.width_px, settings.camera.height_px)
-        camera = camera_producer(lambda: open_socket_camera(sim.camera, expected_size=size), detector, clock)
-        return [camera, radar_producer(radar_task_for(settings, sim.radar))]
-    camera = camera_producer(
-        lambda: open_v4l2_camera(settings.camera, asyncio.get_running_loop().time), detector, clock
-    )  # opened on the loop; its capture thread may call loop.time()
-    return [camera, radar_producer(radar_task_for(settings, settings.radar.port))]
+        camera = camera_producer(
+            lambda: open_socket_camera(sim.camera, expected_size=size), detector, clock, frame_log=logs.camera
+        )
+        return [camera, radar_producer(radar_task_for(settings, sim.radar, on_frame=logs.radar))]
+    camera = camera_producer(  # opened on the loop; its capture thread may call loop.time()
+        lambda: open_v4l2_camera(settings.camera, asyncio.get_running_loop().time),
+        detector,
+        clock,
+        frame_log=logs.camera,
+    )
+    return [camera, radar_producer(radar_task_for(settings, settings.radar.port, on_frame=logs.radar))]
 
 
 def tracking_report(summary: dict[str, Any]) -> str:
@@ -261,6 +294,17 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as e:
         print(f"seapick: invalid input: --run-dir {run_dir}: {e.strerror or e}", file=sys.stderr)
         return 2
+    live = None
+    if args.foxglove:
+        from app.foxglove_live import LiveServer
+
+        try:
+            live = LiveServer.start(events, args.foxglove_port, run_dir)
+        except ConfigError as e:
+            events.close()
+            print(f"seapick: invalid input: {e}", file=sys.stderr)
+            return 2
+        print(f"seapick: Foxglove live on {live.url} (Foxglove: Open connection, Foxglove WebSocket)")
     sim_proc = None
     url = args.connect or settings.connection.url
     pickup = model_name(table) == "pickup"
@@ -303,6 +347,8 @@ def main(argv: list[str] | None = None) -> int:
             summary["error_type"] = type(leaf).__name__
     finally:
         events.close()
+        if live is not None:
+            live.stop()
         if sim_proc is not None:
             sim_proc.terminate()
             try:
@@ -310,6 +356,8 @@ def main(argv: list[str] | None = None) -> int:
             except subprocess.TimeoutExpired:
                 sim_proc.kill()
     summary["event_counts"] = events.counts
+    if live is not None:
+        summary["foxglove_live"] = {"url": live.url, "dropped": live.dropped, "skipped": live.skipped}
     if sim_proc is not None and pickup:
         summary.update(pickup_truth(run_dir / "sim_state.jsonl", summary))
     if pickup:
@@ -317,6 +365,10 @@ def main(argv: list[str] | None = None) -> int:
             summary["report"] = str(render_report(run_dir, title=f"{table.mission} seed {args.seed}"))
         except Exception as e:  # a figure that failed must not cost the summary
             summary["report_error"] = f"{type(e).__name__}: {e}"
+    try:
+        summary["mcap"] = str(write_mcap(run_dir))
+    except Exception as e:  # nor a recording that failed
+        summary["mcap_error"] = f"{type(e).__name__}: {e}"
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if summary.get("tracking_samples"):
         print(tracking_report(summary))

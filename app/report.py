@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 
-def _records(path: Path) -> Iterator[dict[str, Any]]:
+def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
     """JSON lines; a line cut off by a crash (the last one) is skipped, not fatal."""
     with path.open() as f:
         for line in f:
@@ -45,7 +45,7 @@ class RunTrace:
     @classmethod
     def load(cls, run_dir: Path) -> RunTrace:
         tr = cls()
-        for r in _records(run_dir / "events.jsonl"):
+        for r in read_jsonl(run_dir / "events.jsonl"):
             if r.get("kind") == "state":
                 tr.states.append((r["t_s"], r["to"]))
             elif r.get("kind") == "pickup":
@@ -57,7 +57,7 @@ class RunTrace:
         sim_log = run_dir / "sim_state.jsonl"
         if sim_log.exists():
             offset = 0.0
-            for r in _records(sim_log):
+            for r in read_jsonl(sim_log):
                 ev = r.get("event")
                 if ev == "start":
                     offset = float(r.get("boot_monotonic_s", 0.0))

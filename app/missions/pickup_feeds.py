@@ -21,10 +21,11 @@ from typing import Any
 from app.clock import Clock
 from app.messages import PixelDetection
 from app.missions.pickup import PickupEstimates, RadarCalibrator
+from app.missions.sensor_log import CameraFrameLog
 from app.queues import LatestQueue
 from app.sensors.camera import CameraError, CameraSource
 from app.sensors.detect import Detector
-from app.sensors.radar_task import RadarTask
+from app.sensors.radar_task import FrameCallback, RadarTask
 from app.sensors.x4m03_driver import X4M03Radar
 from app.settings import Settings
 
@@ -116,9 +117,11 @@ def camera_producer(
     detector: Detector,
     clock: Clock,
     open_timeout_s: float = CAMERA_OPEN_TIMEOUT_S,
+    frame_log: CameraFrameLog | None = None,
 ) -> Producer:
     """The camera task: frames → the detector (in its own worker thread, never on the loop, at a lower priority
-    than the loop: ``DETECTOR_NICE``) → ``feeds.frames``.
+    than the loop: ``DETECTOR_NICE``) → ``feeds.frames``. With a ``frame_log``, the frames it finds due are
+    downscaled, encoded and written by the same worker thread after their detection.
 
     Opening is retried for ``open_timeout_s``; after that, and for a camera that fails later, the
     ``CameraError`` ends the task (the mission sees the camera's frames age: a guard input).
@@ -151,6 +154,8 @@ def camera_producer(
                 height_m = feeds.model.latest_height_m() if feeds.model is not None else None
                 det = await loop.run_in_executor(worker, detector.detect, frame.image, frame.t_s, None, height_m)
                 feeds.frames.put(CameraObservation.of(frame.t_s, det))
+                if frame_log is not None and frame_log.due(frame.t_s):
+                    await loop.run_in_executor(worker, frame_log.save, frame.t_s, frame.image)
                 frame = await camera.next_frame()
         finally:
             await camera.__aexit__(None, None, None)
@@ -167,7 +172,12 @@ def radar_producer(make_task: Callable[[PickupFeeds], RadarTask]) -> Producer:
     return produce
 
 
-def radar_task_for(settings: Settings, port: str) -> Callable[[PickupFeeds], RadarTask]:
+def radar_task_for(
+    settings: Settings, port: str, on_frame: FrameCallback | None = None
+) -> Callable[[PickupFeeds], RadarTask]:
+    """The radar task on ``port``, its heights into ``feeds``; every frame also to ``on_frame`` (the run's decimated
+    profiles: ``app.missions.sensor_log.RadarProfileLog``) when one is given."""
+
     def make(feeds: PickupFeeds) -> RadarTask:
         radar = X4M03Radar(settings.radar.model_copy(update={"port": port}))
         task = RadarTask(
@@ -175,6 +185,7 @@ def radar_task_for(settings: Settings, port: str) -> Callable[[PickupFeeds], Rad
             settings.radar_altitude,
             on_height=lambda t_s, h_m: feeds.heights.put(HeightSample(t_s, h_m)),
             on_lost=lambda t_s, why: feeds.heights.put(HeightSample(t_s, None)),
+            on_frame=on_frame,
         )
         feeds.set_radar_calibrator(RadarCalibrator(settings.radar.frame_area_end_m, task.capture_background))
         return task

@@ -5,7 +5,9 @@ TaskGroup it runs the driver (``radar.driver``: connect, stream, reconnect), the
 and a watchdog (``radar.watchdog``). Each frame goes to ``RadarAltitudeEstimator`` with the vehicle's roll and
 pitch at the frame's measured time when an ``attitude_at`` provider is given (else level flight: with the
 specular tilt model the attitude only moves the antenna's lever arm); each accepted height is handed to
-``on_height(t_s, height_m)`` with the frame's time. Wiring to the mission (``app.missions.pickup_feeds``)::
+``on_height(t_s, height_m)`` with the frame's time. Every frame, before the estimator sees it, also goes to
+``on_frame`` when one is given (the run's decimated profiles, ``app.missions.sensor_log``: it must be quick).
+Wiring to the mission (``app.missions.pickup_feeds``)::
 
     RadarTask(radar, settings.radar_altitude,
               on_height=lambda t_s, h_m: feeds.heights.put(HeightSample(t_s, h_m)),
@@ -50,6 +52,7 @@ from app.settings import RadarAltitudeSettings
 HeightCallback = Callable[[float, float], None]  # (t_s measured, height_m above the sea)
 LostCallback = Callable[[float, str], None]  # (t_s, reason)
 AttitudeAt = Callable[[float], tuple[float, float] | None]  # t_s → (roll_rad, pitch_rad), None when unknown
+FrameCallback = Callable[[RadarFrame], None]  # every frame as it arrives, on the loop
 
 FRAME_TIMEOUT_S = 1.0  # no frame for this long → lost (ten frames at the thesis's 10 Hz)
 STARTUP_TIMEOUT_S = 10.0  # … before the first frame: boot, ping until ready, configure
@@ -93,6 +96,7 @@ class RadarTask:
         on_lost: LostCallback,
         *,
         attitude_at: AttitudeAt | None = None,
+        on_frame: FrameCallback | None = None,
         clock: Clock | None = None,
         frame_timeout_s: float = FRAME_TIMEOUT_S,
         startup_timeout_s: float = STARTUP_TIMEOUT_S,
@@ -103,6 +107,7 @@ class RadarTask:
         self.on_height = on_height
         self.on_lost = on_lost
         self.attitude_at = attitude_at
+        self.on_frame = on_frame
         self.clock: Clock = clock if clock is not None else LoopClock()
         self.frame_timeout_s = frame_timeout_s
         self.startup_timeout_s = startup_timeout_s
@@ -206,6 +211,8 @@ class RadarTask:
             capture.frames.append(frame)
             if len(capture.frames) >= capture.n_frames:
                 capture.future.set_result(list(capture.frames))
+        if self.on_frame is not None:
+            self.on_frame(frame)
         roll_rad, pitch_rad = self._attitude(frame.t_s)
         estimator = self.estimator
         before = estimator.rejected_non_finite

@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[2]
         (["--mission", "circle.yaml", "--seed", "abc"], "argument --seed: invalid int value"),
         (["--mission", "circle.yaml", "--wind-mps", "nan"], "argument --wind-mps: nan is outside 0..30 m/s"),
         (["--mission", "circle.yaml", "--pilot-port", "70000"], "70000 is outside 0..65535 (UDP port)"),
+        (["--mission", "circle.yaml", "--foxglove-port", "70000"], "70000 is outside 0..65535 (TCP port)"),
         (["--mission", "circle.yaml", "--sim", "--connect", "udpin://0.0.0.0:1"], "exclude each other"),
         (["--mission", "circle.yaml", "--settings", "/etc/hostname"], "top level must be a mapping"),
         ([], "the following arguments are required: --mission"),

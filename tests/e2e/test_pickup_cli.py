@@ -18,6 +18,7 @@ import time
 import pytest
 
 from tests.e2e.cliutil import popen, read_jsonl, stop, wait_for_state
+from tests.mcaputil import check_run_mcap
 
 pytestmark = pytest.mark.e2e
 
@@ -58,3 +59,4 @@ def test_pickup_over_mavlink_picks_the_object_up_with_the_served_camera_and_rada
     assert s["timing"]["setpoint_interval_p99_s"] < 0.05
     png = (run_dir / "report.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+    check_run_mcap(run_dir)  # the flight opens in Foxglove: every pickup topic, read back channel by channel
