@@ -16,7 +16,7 @@ from typing import Any
 
 from app.clock import Clock
 from app.estimators.factory import make_target_filter
-from app.estimators.sea_state import SEA_STATES
+from app.estimators.sea_state import SEA_STATES, peak_wave_slope
 from app.estimators.triangulation import SeaPlaneTriangulator
 from app.eventlog import EventLog
 from app.gcs.config import GcsSettings
@@ -108,7 +108,9 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
         buoy_diameter_m=settings.detector.buoy_diameter_m,
         size_tolerance=p.size_tolerance,
         height_uncertainty_m=SEA_STATES[p.sea_state].hs_m / 2.0,  # the sea under the radar vs under the object
+        wave_slope=peak_wave_slope(SEA_STATES[p.sea_state].hs_m, SEA_STATES[p.sea_state].tp_s),
         confirm_frames=p.confirm_frames,
+        confirm_fraction=p.confirm_fraction,
         converged_sigma_m=p.converged_sigma_m,
     )
     tri = SeaPlaneTriangulator.from_settings(
@@ -214,8 +216,19 @@ async def fly_mission(
 TRACE_PERIOD_S = 0.2
 
 
+def sigmas_and_correlation(cov_ne_m2: tuple[tuple[float, float], tuple[float, float]] | None) -> dict[str, Any]:
+    """The estimate's horizontal covariance as the trace logs it: standard deviations keep their precision where the
+    event log's 4 decimals would round a small variance away."""
+    if cov_ne_m2 is None:
+        return {"estimate_sigma_ne_m": None, "estimate_rho_ne": None}
+    sigma_n_m, sigma_e_m = math.sqrt(max(cov_ne_m2[0][0], 0.0)), math.sqrt(max(cov_ne_m2[1][1], 0.0))
+    rho = cov_ne_m2[0][1] / (sigma_n_m * sigma_e_m) if sigma_n_m * sigma_e_m > 0.0 else 0.0
+    return {"estimate_sigma_ne_m": [sigma_n_m, sigma_e_m], "estimate_rho_ne": rho}
+
+
 async def trace_pickup(runner: MissionRunner, clock: Clock, events: EventLog) -> None:
-    """5 Hz ``pickup`` records for the report: the vehicle, the estimate, the height above the sea, the fix."""
+    """5 Hz ``pickup`` records for the report and ``run.mcap``: the vehicle (position, attitude), the estimate
+    (position; horizontal standard deviations and their correlation), the height above the sea, the fix's age."""
     model = runner.mission
     assert isinstance(model, PickupEstimates)
     while True:
@@ -228,14 +241,17 @@ async def trace_pickup(runner: MissionRunner, clock: Clock, events: EventLog) ->
             t_fix_s, n_m, e_m, result = model.fix_log.popleft()
             events.write(t_fix_s, "fix", ne_m=[round(n_m, 3), round(e_m, 3)], result=result)
         snap = model.snapshot(t_s)
-        target = snap.target
+        target, cov, att = snap.target, snap.target_cov_ne_m2, runner.boundary.telemetry().attitude
         events.write(
             t_s,
             "pickup",
             state=runner.state,
             vehicle_ne_m=[round(pv.pos_ned_m[0], 3), round(pv.pos_ned_m[1], 3)],
             vehicle_down_m=round(pv.pos_ned_m[2], 3),
+            vehicle_rpy_rad=None if att is None else [round(a, 4) for a in (att.roll_rad, att.pitch_rad, att.yaw_rad)],
             estimate_ne_m=None if target is None else [round(target.pos_ned_m[0], 3), round(target.pos_ned_m[1], 3)],
+            estimate_down_m=None if target is None else round(target.pos_ned_m[2], 3),
+            **sigmas_and_correlation(cov),
             height_above_sea_m=None if snap.height_above_sea_m is None else round(snap.height_above_sea_m, 3),
             fix_age_s=None if snap.fix_age_s is None else round(snap.fix_age_s, 3),
         )

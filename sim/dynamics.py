@@ -26,7 +26,7 @@ K_pos·(p_target − p) + v_des with a_des as feed-forward. ``sim.airframes`` ho
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from sim.estimator import EstimatorError
 from sim.poscontrol import GuidedVelocityShaper, PosControlParams
@@ -220,9 +220,21 @@ class Dynamics:
         dropped while on the ground, where EKF2/EKF3 fuse zero velocity)."""
         if self.estimator is None:
             return self.state
-        s = self.state
-        pos, vel = self.estimator.apply(s.pos_ned_m, s.vel_ned_mps)
-        return replace(s, pos_ned_m=pos, vel_ned_mps=s.vel_ned_mps if s.on_ground else vel)
+        p, v, a = self._p, self._v, self._a
+        true_vel = (v[0], v[1], v[2])
+        pos, vel = self.estimator.apply((p[0], p[1], p[2]), true_vel)
+        return VehicleState(  # built directly, not as a replace() of ``state``: the hottest property of a run
+            pos_ned_m=pos,
+            vel_ned_mps=true_vel if self._on_ground else vel,
+            acc_ned_mps2=(a[0], a[1], a[2]),
+            roll_rad=self._roll_rad,
+            pitch_rad=self._pitch_rad,
+            yaw_rad=self._yaw_rad,
+            rates_radps=self._rates,
+            on_ground=self._on_ground,
+            thrust_mps2=self._thrust_mps2,
+            wind_ned_mps=self._wind_ned_mps,
+        )
 
     @property
     def vel_int_ned_mps2(self) -> Vec3:

@@ -14,7 +14,8 @@ caught it, else the last grab; None without a grab), ``time_to_pickup_s`` (armin
 ``abort_reason`` (None when picked up: else the transition that gave up — ``STATE→STATE:
 reason`` — or the error), ``envelope_violations`` (setpoints outside the speed envelope or not finite, as the
 vehicle received them: ``sim.safety_rules``' ``finite_in_envelope``), ``safety_violations`` (every rule broken),
-``off_target_touchdowns`` (grabs farther than the scenario's capture radius from the object), ``mission_s``,
+``off_target_touchdowns`` (touchdowns farther than the scenario's capture radius from the object: grabs, and
+the vehicle down on the water without one; ``off_target_grabs`` and ``off_target_contacts`` count each), ``mission_s``,
 ``wall_s``, ``fixes_rejected`` and ``clutter`` (what the clutter and the detector model did).
 """
 
@@ -57,7 +58,7 @@ TRACE_PERIOD_S = 0.2  # the truth written for a run's report (--run-reports)
 
 def run_pickup(scenario: dict[str, Any], config: str, run: int = 0, run_dir: str | None = None) -> dict[str, Any]:
     """Fly one scenario with one configuration (``CONFIGS``) on a fresh looptime loop; see the module docstring.
-    ``run_dir``: also write the run's event log, the simulator's truth and ``report.png`` there."""
+    ``run_dir``: also write the run's event log, the simulator's truth, ``report.png`` and ``run.mcap`` there."""
     wall0 = time.perf_counter()
     loop = looptime.new_event_loop(noop_cycles=NOOP_CYCLES)
     try:
@@ -68,9 +69,14 @@ def run_pickup(scenario: dict[str, Any], config: str, run: int = 0, run_dir: str
         loop.close()
     wall_s = round(time.perf_counter() - wall0, 3)  # the flight's, not the report's
     if run_dir is not None and result["outcome"] != "error":
+        from app.foxglove_log import write_mcap
         from app.report import render_report
 
         render_report(Path(run_dir), title=f"{config} run {run} (seed {scenario['seed']})")
+        try:
+            write_mcap(Path(run_dir))
+        except Exception as e:  # the recording is a view of the run's logs: without it the result still counts
+            print(f"sim.evaluate: {run_dir}: run.mcap not written: {type(e).__name__}: {one_line(e)}", file=sys.stderr)
     return {"run": run, "seed": scenario["seed"], "scenario": scenario, "config": config} | result | {"wall_s": wall_s}
 
 
@@ -78,7 +84,8 @@ def _empty(outcome: str, reason: str) -> dict[str, Any]:
     return {
         "outcome": outcome, "final_state": None, "touchdown_error_m": None, "time_to_pickup_s": None, "retries": 0,
         "grabs": 0, "abort_reason": reason, "envelope_violations": 0, "safety_violations": [], "caught": False,
-        "off_target_touchdowns": 0, "mission_s": 0.0, "fixes_rejected": {}, "clutter": {},
+        "off_target_touchdowns": 0, "off_target_grabs": 0, "off_target_contacts": 0, "mission_s": 0.0,
+        "fixes_rejected": {}, "clutter": {},
     }  # fmt: skip
 
 
@@ -144,7 +151,7 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dic
     touchdown = caught[0] if caught else (grabs[-1] if grabs else None)
     armed_s = next((r["t_s"] for r in vehicle.records if r["event"] == "armed" and r["armed"]), None)
     if run_dir is not None:
-        _write_grabs(run_dir, grabs)
+        _write_grabs(run_dir, grabs, world.outcome.contacts)
     return {
         "outcome": outcome,
         "final_state": final_state,
@@ -156,11 +163,33 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dic
         "envelope_violations": sum(1 for v in violations if v.rule == "finite_in_envelope"),
         "safety_violations": sorted({v.rule for v in violations}),
         "caught": bool(caught),
-        "off_target_touchdowns": sum(1 for g in grabs if g["error_m"] > scenario.capture_radius_m),
+        "off_target_touchdowns": _off_target_touchdowns(grabs, world.outcome.contacts, scenario.capture_radius_m),
+        "off_target_grabs": sum(1 for g in grabs if g["error_m"] > scenario.capture_radius_m),
+        "off_target_contacts": sum(1 for c in world.outcome.contacts if c["error_m"] > scenario.capture_radius_m),
         "mission_s": round(end_s - t0_s, 2),
         "fixes_rejected": dict(sorted(figures.get("fixes_rejected", {}).items())),
         "clutter": world.clutter_summary(),
     }
+
+
+SAME_TOUCHDOWN_S = 2.0  # a grab and a contact with the water this close in time are one touchdown
+
+
+def _off_target_touchdowns(grabs: Sequence[dict[str, Any]], contacts: Sequence[dict[str, Any]], radius_m: float) -> int:
+    """Touchdowns farther than ``radius_m`` from the object: the vehicle came down onto the water there (grab or
+    not), or closed the gripper there just above the water."""
+
+    def same(a: dict[str, Any], b: dict[str, Any]) -> bool:
+        return abs(a["t_s"] - b["t_s"]) <= SAME_TOUCHDOWN_S
+
+    on_target_grabs = [g for g in grabs if g["error_m"] <= radius_m]
+    off_contacts = [  # down on the water off the object (settling onto it right at a grab on it is that grab)
+        c for c in contacts if c["error_m"] > radius_m and not any(same(c, g) for g in on_target_grabs)
+    ]
+    above_water = [  # off-target grabs without coming down onto the water (just above it)
+        g for g in grabs if g["error_m"] > radius_m and not any(same(g, c) for c in contacts)
+    ]
+    return len(off_contacts) + len(above_water)
 
 
 def _gave_up(states: Sequence[dict[str, Any]], reason: str) -> str:
@@ -184,10 +213,12 @@ async def _truth_trace(world: EvalPickupWorld, run_dir: Path) -> None:
             await asyncio.sleep(TRACE_PERIOD_S)
 
 
-def _write_grabs(run_dir: Path, grabs: list[dict[str, Any]]) -> None:
+def _write_grabs(run_dir: Path, grabs: list[dict[str, Any]], contacts: list[dict[str, Any]]) -> None:
     with (run_dir / "sim_state.jsonl").open("a") as f:
         for g in grabs:
             f.write(json.dumps({"event": "grab", **g}) + "\n")
+        for c in contacts:
+            f.write(json.dumps({"event": "contact", **c}) + "\n")
 
 
 # ---- many runs -----------------------------------------------------------------------------------------------

@@ -73,6 +73,8 @@ class PickupOutcome:
     touchdown_speed_mps: float | None = None
     caught: bool = False
     grabs: list[dict[str, Any]] = field(default_factory=list)
+    # every time the vehicle came down onto the water (away from the deck): when, and how far from the object
+    contacts: list[dict[str, Any]] = field(default_factory=list)
 
 
 class PickupWorld:
@@ -95,6 +97,7 @@ class PickupWorld:
         self.buoy_diameter_m = settings.detector.buoy_diameter_m
         self.outcome = PickupOutcome()
         self._gripper_closed = False
+        self._on_water = False
         # per camera frame, from the truth: (t_s, height above the sea, down speed, the sea surface's down speed
         # under the vehicle) — for checking descents from the vehicle's side
         self.samples: list[tuple[float, float, float, float]] = []
@@ -144,6 +147,7 @@ class PickupWorld:
                 feeds.heights.put(HeightSample(t_s, body_m + float(self.rng.normal(0.0, sc.radar_noise_m))))
             sea_wd = float(self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])[2])
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
+            self._note_contact(t_s, sea_down - p[2], p, o.pos_ned_m)
             # a caught object hangs in the gripper, out of the camera's sea
             blind = self.outcome.caught or self.camera_blind
             if blind:
@@ -191,6 +195,19 @@ class PickupWorld:
         u, v = f.centre_true_px + self.rng.normal(0.0, BUOY_NOISE_PX, 2)
         return CameraObservation(t_s, center_px=(float(u), float(v)), diameter_px=diameter_px)
 
+    def _note_contact(self, t_s: float, height_m: float, pos_ned_m: Any, object_ned_m: Any) -> None:
+        """A touchdown on the water (the vehicle within ``CONTACT_M`` of the sea under it, away from the deck; it
+        counts again only after the vehicle was ``CONTACT_CLEAR_M`` up): recorded with its distance to the object,
+        until a grab caught it."""
+        if self.outcome.caught or math.hypot(float(pos_ned_m[0]), float(pos_ned_m[1])) <= DECK_RADIUS_M:
+            return  # the object hangs in the gripper (its truth floats on, untouched); or the vehicle is on deck
+        if not self._on_water and height_m <= CONTACT_M:
+            err = math.hypot(pos_ned_m[0] - object_ned_m[0], pos_ned_m[1] - object_ned_m[1])
+            self.outcome.contacts.append({"t_s": t_s, "error_m": err})
+            self._on_water = True
+        elif self._on_water and height_m > CONTACT_CLEAR_M:
+            self._on_water = False
+
     def _judge_grab(self, t_s: float, truth: Any) -> None:
         if truth.gripper_closed and not self._gripper_closed:
             judge_grab(self.outcome, self.scenario, self.object, t_s, truth)
@@ -198,6 +215,8 @@ class PickupWorld:
 
 
 DECK_RADIUS_M = 5.0  # around home the vehicle stands on the deck (down 0); beyond, on the sea
+CONTACT_M = 0.05  # the vehicle this close to the water under it has touched down on it …
+CONTACT_CLEAR_M = 0.3  # … and a next touchdown needs it this high first
 
 
 def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any) -> float:

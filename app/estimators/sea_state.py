@@ -47,6 +47,14 @@ def pierson_moskowitz(omega_radps: ArrayLike, hs_m: float, tp_s: float) -> NDArr
     return np.where(omega > 0.0, s, 0.0)
 
 
+def peak_wave_slope(hs_m: float, tp_s: float) -> float:
+    """The steepest slope of a wave of height ``hs_m`` at the peak period (deep water, L = g Tp² / 2π): π Hs / L.
+    Two points ``d`` apart on such a sea differ in height by at most about this times ``d`` (for d ≪ L)."""
+    if hs_m <= 0.0 or tp_s <= 0.0:
+        return 0.0
+    return math.pi * hs_m / (GRAVITY_MPS2 * tp_s**2 / (2.0 * math.pi))
+
+
 SEA_STATES: dict[int, SeaState] = {
     code: SeaState(code, hs, pm_peak_period_s(hs), name)
     for code, hs, name in (

@@ -198,6 +198,7 @@ async def start_descend(io: MissionIO) -> None:
         p.final_abort_radius_m,
         p.crest_margin_m,
         p.descend_max_lead_m,
+        p.final_max_speed_mps,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

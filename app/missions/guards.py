@@ -33,6 +33,7 @@ class GuardContext:
     start_given: bool = True  # the ground station said start (True when there is none)
     land_authorized: bool = True  # the operator authorised the landing (True when none is needed)
     geofence_radius_m: float = math.inf  # the envelope's fence around home (the vehicle cannot go past it)
+    airborne_for_s: float | None = None  # since the mission's first flying state (None: not flown yet)
 
 
 Guard = Callable[[GuardContext], bool]
@@ -150,16 +151,27 @@ def touchdown(ctx: GuardContext) -> bool:
 
 
 def touchdown_off_target(ctx: GuardContext) -> bool:
-    """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, or without one: no
-    grab there — climb back and try again."""
+    """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, without one, or with
+    a fix older than ``grab_fix_max_age_s``: no grab there — climb back and try again. The last half metre is
+    flown blind (the camera's view there is smaller than the object's offset plus the tilt), but a fix much older
+    than that descent means the object was lost higher up, and the estimate drifts off it by decimetres a second."""
     if not touchdown(ctx):
         return False
-    t = ctx.estimates.target
+    e = ctx.estimates
+    if e.fix_age_s is None or e.fix_age_s > ctx.params.grab_fix_max_age_s:
+        return True
+    t = e.target
     d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
     return d is None or d > ctx.params.grab_max_offset_m
 
 
 FENCE_MARGIN_M = 2.0  # an object this close to the fence (or beyond) counts as beyond reach
+
+
+def pickup_time_up(ctx: GuardContext) -> bool:
+    """In the air for ``pickup_time_limit_s``: the battery's budget for finding and catching the object is spent
+    (an object seen and lost again and again would otherwise keep the vehicle out until the battery failsafe)."""
+    return ctx.airborne_for_s is not None and ctx.airborne_for_s > ctx.params.pickup_time_limit_s
 
 
 def object_beyond_fence(ctx: GuardContext) -> bool:
@@ -261,6 +273,7 @@ GUARDS: dict[str, Guard] = {
         disarmed_with_object,
         touchdown_off_target,
         object_beyond_fence,
+        pickup_time_up,
         at_lift_altitude,
         above_home,
         radar_calibration_done,

@@ -76,6 +76,9 @@ class MissionParams(BaseModel):
     final_radius_m: float = Field(
         0.1, ge=0.01, le=5.0, description="… within this of the estimate (else wait at that height), m"
     )
+    final_max_speed_mps: float = Field(
+        0.3, ge=0.02, le=5.0, description="… and moving with it: horizontal speed relative to it at most this, m/s"
+    )
     final_abort_radius_m: float = Field(
         0.2, ge=0.02, le=5.0, description="below the final height, this far off the estimate climbs back to it, m"
     )
@@ -88,6 +91,12 @@ class MissionParams(BaseModel):
     grab_max_offset_m: float = Field(
         0.15, ge=0.02, le=2.0, description="at the water farther than this from the estimate: no grab, climb back, m"
     )
+    pickup_time_limit_s: float = Field(
+        900.0, ge=60.0, le=7200.0, description="in the air this long without the object: RETURN (battery budget), s"
+    )
+    grab_fix_max_age_s: float = Field(
+        1.0, ge=0.1, le=10.0, description="at the water with an older fix than this: no grab, climb back, s"
+    )
     land_authorization: bool = Field(
         False, description="descend onto the object only after an operator's authorize_land (thesis), true/false"
     )
@@ -97,6 +106,9 @@ class MissionParams(BaseModel):
         0.15, ge=0.02, le=1.0, description="apparent size within this of the expected (plus the waves' share)"
     )
     confirm_frames: int = Field(3, ge=1, le=30, description="agreeing fixes before a new lock, count")
+    confirm_fraction: float = Field(
+        0.3, ge=0.0, le=1.0, description="the agreeing fixes are at least this share of the frames in 1 s (M of N)"
+    )
     verify_height_m: float = Field(
         1.5, ge=0.5, le=10.0, description="after the grab, climb this high above the sea and look for the object, m"
     )

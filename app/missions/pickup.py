@@ -19,7 +19,8 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    on rendered frames) is refused, the marker itself (0.93–1.0) is not. A buoy is a sphere of the detector's
    ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
-   must agree within ``confirm_radius_m``; only then is the filter started (with the newest of them).
+   must agree within ``confirm_radius_m``, and they must be at least ``confirm_fraction`` of the frames of that
+   window (M of N, as a radar tracker confirms a track); only then is the filter started (with the newest).
    Once locked, the filter's own innovation gate judges every fix; when the lock times out, confirmation
    starts over.
 
@@ -73,6 +74,8 @@ class FixChecks:
     buoy_diameter_m: float = 0.15  # a buoy's diameter (the buoy detector's), m
     size_tolerance: float = 0.15  # |√(area ratio) − 1| allowed with an exact range …
     height_uncertainty_m: float = 0.25  # … plus this over the camera's height (the waves: Hs/2)
+    wave_slope: float = 0.0  # the sea's steepest slope (π Hs / L): caps how much the sea under the object differs
+    radar_height_std_m: float = 0.02  # from the sea under the radar d metres away (d · slope, not below this)
     altitude_uncertainty_m: float = 0.5  # a height from the altitude over the sea reference: this much worse
     home_above_sea_m: float = 0.0  # before the radar has seen the sea: home (the deck) this far above it
     sea_level_fresh_s: float = 3.0  # the tracked mean sea counts this long after the radar's last height
@@ -80,6 +83,7 @@ class FixChecks:
     confirm_frames: int = 3  # agreeing fixes before a new lock
     confirm_window_s: float = 1.0
     confirm_radius_m: float = 0.5
+    confirm_fraction: float = 0.3  # … and they are at least this share of the frames in the window (M of N)
     height_max_age_s: float = 0.5  # a radar height older than this is not used
     converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
     grab_sighting_radius_m: float = 1.0  # after a grab, the object seen this close to it on the sea: missed
@@ -154,6 +158,7 @@ class PickupEstimates:
         self._last_frame_t_s: float | None = None
         self._last_fix_t_s: float | None = None
         self._candidates: deque[TargetObservation] = deque()
+        self._frame_times_s: deque[float] = deque()  # capture times of the frames within the confirmation window
         self._converged_since_s: float | None = None
         # where SEARCH searches, at ``datum_t_s`` (moves to the last estimate on a loss), drifting at
         # ``search_drift_ne_mps`` from then on
@@ -312,6 +317,10 @@ class PickupEstimates:
     def on_frame(self, t_s: float) -> None:
         """A camera frame was processed (with or without a detection): the camera is alive."""
         self._last_frame_t_s = t_s
+        frames = self._frame_times_s
+        frames.append(t_s)
+        while frames and t_s - frames[0] > self.checks.confirm_window_s:
+            frames.popleft()
 
     def on_marker(self, t_s: float, corners_px: ArrayLike, size_m: float | None = None) -> bool:
         """One marker detection at capture time ``t_s``; True when it was fused into the filter. ``size_m`` is the
@@ -350,6 +359,14 @@ class PickupEstimates:
         fix = triangulate(state, height_m, height_uncertainty_m / 2.0)
         if fix is None:
             return self._reject("no_ray")
+        if c.wave_slope > 0.0 and self.radar_height_at(t_s) is not None:
+            # … but by no more than the sea's slope over the distance from the radar's spot to the object: right
+            # over the object (descending) the radar measures the sea the object floats on, and a fix whose
+            # covariance still carried the whole wave height would be trusted ten times too little
+            p, o = state.pos_ned_m, fix.observation.pos_ned_m
+            local_std_m = max(c.radar_height_std_m, c.wave_slope * math.hypot(o[0] - p[0], o[1] - p[1]))
+            if local_std_m < height_uncertainty_m / 2.0:
+                fix = triangulate(state, height_m, local_std_m) or fix
         tolerance = c.size_tolerance + height_uncertainty_m / max(fix.camera_height_m, 0.1)
         if not abs(size_ratio(fix) - 1.0) <= tolerance:
             return self._reject("size")
@@ -383,7 +400,11 @@ class PickupEstimates:
             for o in self._candidates
             if math.hypot(o.pos_ned_m[0] - obs.pos_ned_m[0], o.pos_ned_m[1] - obs.pos_ned_m[1]) <= c.confirm_radius_m
         ]
-        if len(near) >= c.confirm_frames:
+        # M of N: a floating object in view is detected in most frames; clutter that comes and goes (glints: a
+        # tenth of the frames, anywhere in view) can agree with itself by chance when the view is small — low
+        # over the deck every glint lies within the confirmation radius — but not in most frames
+        frames = sum(1 for t in self._frame_times_s if obs.t_s - t <= c.confirm_window_s)
+        if len(near) >= c.confirm_frames and len(near) >= c.confirm_fraction * frames:
             self._candidates.clear()
             return True
         return False

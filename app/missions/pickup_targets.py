@@ -172,7 +172,9 @@ class DescendTarget(ObjectTarget):
 
     The final part — below ``final_height_m``, raised to clear the highest recent crest by ``crest_margin_m``
     (``MeanSeaLevel.crest_m``: a vehicle waiting lower is met by a crest wherever it is) — is flown only right
-    over the object: it starts within ``final_radius_m`` of the estimate and, drifting past
+    over the object: it starts within ``final_radius_m`` of the estimate, moving with it (relative horizontal speed
+    at most ``final_max_speed_mps``: a vehicle that lags the object's wave orbit slides off it on the way down)
+    and, drifting past
     ``final_abort_radius_m``, climbs back to the final height and waits again. The desired height never leads
     the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
     would otherwise come down at the envelope's full speed."""
@@ -193,6 +195,7 @@ class DescendTarget(ObjectTarget):
         final_abort_radius_m: float = math.inf,
         crest_margin_m: float = 0.0,
         max_lead_m: float = math.inf,
+        final_max_speed_mps: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m)
         self.speed_mps = speed_mps
@@ -204,6 +207,7 @@ class DescendTarget(ObjectTarget):
         self.final_abort_radius_m = max(final_abort_radius_m, final_radius_m)
         self.crest_margin_m = crest_margin_m
         self.max_lead_m = max_lead_m
+        self.final_max_speed_mps = final_max_speed_mps
         self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
         self.go_arounds = 0  # final descents given up for drifting off the object
         self.plunging = False  # in the final part, right over the object
@@ -227,19 +231,21 @@ class DescendTarget(ObjectTarget):
             self.height_m = max(self.height_m, self.safety_height_m)
             self.plunging = False
         elif self.height_m <= final_m:
-            off_m = self._off_the_object_m(t_s)
+            off_m, slip_mps = self._off_the_object(t_s)
             if self.plunging and off_m > self.final_abort_radius_m:
                 self.plunging = False
                 self.go_arounds += 1
-            elif not self.plunging and off_m <= self.final_radius_m:
+            elif not self.plunging and off_m <= self.final_radius_m and slip_mps <= self.final_max_speed_mps:
                 self.plunging = True
             if self.plunging:
                 self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
             else:
                 self.waits += 1  # the last part only right over the object: wait at the final height until it is
                 self.height_m = final_m
-        else:
+        elif self._off_the_object(t_s)[0] <= self.final_abort_radius_m:
             self.height_m = max(final_m, self.height_m - self.speed_mps * dt_s)
+        else:  # off the object on the way down too: hold the height until guidance has caught up with it
+            self.waits += 1
         vehicle_m = snap.height_over_mean_sea_m
         if vehicle_m is not None and self.height_m < vehicle_m - self.max_lead_m:
             self.height_m = vehicle_m - self.max_lead_m  # not far ahead of the vehicle on the way down
@@ -248,11 +254,13 @@ class DescendTarget(ObjectTarget):
         # seeds picked up with the lead, 20 of 20 without)
         return self._aim(t_s, self.height_m)
 
-    def _off_the_object_m(self, t_s: float) -> float:
+    def _off_the_object(self, t_s: float) -> tuple[float, float]:
+        """How far the vehicle is off the estimate (m, horizontal) and how fast it moves relative to it (m/s)."""
         pv, est = self.telemetry().pos_vel, self.model.estimate(t_s)
         if pv is None or est is None:
-            return math.inf
-        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m)
+            return math.inf, math.inf
+        slip = horizontal_distance_m(pv.vel_ned_mps, est.vel_ned_mps)
+        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m), slip
 
 
 def horizontal_distance_m(a: Vec3, b: Vec3) -> float:

@@ -103,6 +103,7 @@ class MissionRunner:
         self._confirm_timeout_s = mode_confirm_timeout_s
         self.state = ""
         self._entry_t_s = 0.0
+        self._flying_since_s: float | None = None  # the first flying state's entry
         self._taken_over_from: str | None = None
         self._held_from: str | None = None  # the state a hold request left
         self._abort_requested = False
@@ -251,6 +252,7 @@ class MissionRunner:
             start_given=self.start_given,
             land_authorized=self.land_authorized or not self.params.land_authorization,
             geofence_radius_m=b.params.limits.geofence_radius_m,
+            airborne_for_s=None if self._flying_since_s is None else now_s - self._flying_since_s,
         )
         if not ctx.land_authorized:
             self._note_awaiting_authorization(ctx, spec)
@@ -306,6 +308,8 @@ class MissionRunner:
         self.states_visited.append(name)
         spec = self.table.states[name]
         self.boundary.flying = spec.flying
+        if spec.flying and self._flying_since_s is None:
+            self._flying_since_s = now_s
         if spec.control != "offboard" and not spec.manual:
             self.setpoints.disengage()
         if spec.terminal is not None:

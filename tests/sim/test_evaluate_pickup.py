@@ -1,5 +1,6 @@
-"""The pickup's Monte Carlo evaluation (``python -m sim.evaluate``): a small one through the real CLI, its lines and
-its JSON checked, the same runs on a Dask ``LocalCluster``, bad options refused, and the world's switches."""
+"""The pickup's Monte Carlo evaluation (``python -m sim.evaluate``): a small one through the real CLI, its lines, its
+JSON and every run's ``run.mcap`` checked, the same runs on a Dask ``LocalCluster``, bad options refused, and the
+world's switches."""
 
 from __future__ import annotations
 
@@ -24,18 +25,20 @@ from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
 from sim.pickup_scenarios import CONFIGS, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
 from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
+from tests.mcaputil import PICKUP_TOPICS, check_run_mcap
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED, RUNS, SEA_STATE = 23, 2, 1  # two quick scenarios: buoys, one on PX4 (picked up), one on ArduPilot
 CLI = ["--runs", str(RUNS), "--seed", str(SEED), "--sea-state", str(SEA_STATE), "--compare", "thesis,seapick"]
 NUMBERS = {"touchdown_error_m", "time_to_pickup_s"}
+EVERY_RUN_TOPICS = ("/tf", "/vehicle/pose", "/vehicle/truth", "/object/truth", "/setpoint", "/mission/state", "/log")
 
 
 @pytest.fixture(scope="module")
 def evaluation(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     out = tmp_path_factory.mktemp("eval")
     done = subprocess.run(
-        [sys.executable, "-m", "sim.evaluate", *CLI, "--jobs", "2", "--json", "--out", str(out)],
+        [sys.executable, "-m", "sim.evaluate", *CLI, "--jobs", "2", "--json", "--run-reports", "--out", str(out)],
         cwd=ROOT, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -72,6 +75,22 @@ def test_every_result_line_is_well_formed(evaluation):
     assert "runs" in evaluation["stderr"]  # the progress bar
     for f in ("report.png", "index.html", "summary.json"):
         assert (evaluation["out"] / f).stat().st_size > 500, f
+
+
+def test_every_run_has_a_run_mcap_that_reads_back_channel_by_channel(evaluation):
+    """Each run's directory holds run.mcap, linked from index.html; read back with the mcap reader every topic is
+    there with messages in time order within the run, and a mid-run pose is its record's (a picked-up run: every
+    pickup topic, the estimate, its covariance, the fixes and the radar's height too)."""
+    index = (evaluation["out"] / "index.html").read_text()
+    for r in evaluation["results"]:
+        run_dir = evaluation["out"] / "runs" / r["config"] / f"{r['run']:04d}"
+        picked_up = r["outcome"] == "picked_up"
+        topics = PICKUP_TOPICS if picked_up else {t: PICKUP_TOPICS[t] for t in EVERY_RUN_TOPICS}
+        rec = check_run_mcap(run_dir, topics)
+        assert rec.counts["/mission/state"] == len(
+            [x for x in (run_dir / "events.jsonl").read_text().splitlines() if '"kind":"state"' in x]
+        )
+        assert f"runs/{r['config']}/{r['run']:04d}/run.mcap" in index
 
 
 def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):

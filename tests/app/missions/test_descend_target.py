@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from app.estimators.sea_level import MeanSeaLevel
 from app.messages import PositionVelocityNed, TargetEstimate, TelemetrySnapshot
 from app.missions.estimates import Estimates
@@ -25,6 +27,7 @@ class Scene:
             t_s = k / 15.0
             self.sea_level.update(t_s, -crest_m * math.sin(1.2 * t_s))
         self.vehicle_ne = (0.0, 0.0)
+        self.vehicle_vel_ne = (0.0, 0.0)  # the object's estimate stands still
         self.vehicle_height_m = 4.0
 
     # -- what DescendTarget reads --
@@ -41,13 +44,14 @@ class Scene:
         return 0.0, 0.0
 
     def telemetry(self) -> TelemetrySnapshot:
-        n, e = self.vehicle_ne
-        return TelemetrySnapshot(pos_vel=PositionVelocityNed(0.0, (n, e, -self.vehicle_height_m), (0.0, 0.0, 0.0)))
+        (n, e), (vn, ve) = self.vehicle_ne, self.vehicle_vel_ne
+        return TelemetrySnapshot(pos_vel=PositionVelocityNed(0.0, (n, e, -self.vehicle_height_m), (vn, ve, 0.0)))
 
 
 def descend(scene: Scene, **kw) -> DescendTarget:
     params = dict(speed_mps=0.5, safety_height_m=2.0, fresh_s=0.5, converged_s=2.0, final_height_m=1.0,
-                  final_radius_m=0.1, final_abort_radius_m=0.2, crest_margin_m=0.3, max_lead_m=0.5)  # fmt: skip
+                  final_radius_m=0.1, final_abort_radius_m=0.2, crest_margin_m=0.3, max_lead_m=0.5,
+                  final_max_speed_mps=0.3)  # fmt: skip
     return DescendTarget(scene, scene.telemetry, 4.0, **(params | kw))  # type: ignore[arg-type]
 
 
@@ -66,7 +70,7 @@ def fly(target: DescendTarget, scene: Scene, t0_s: float, seconds: float, follow
 def test_it_waits_above_the_highest_crest_until_it_is_over_the_object():
     scene = Scene(crest_m=0.9)  # sea state 3: crests 0.9 m over the mean
     target = descend(scene)
-    scene.vehicle_ne = (0.3, 0.0)  # off the object
+    scene.vehicle_ne = (0.15, 0.0)  # near the object, but not within the final radius
     t_s = fly(target, scene, 100.0, 10.0)
     final_m = target.final_height_now_m()
     print(f"final height {final_m:.2f} m (crest {scene.sea_level.crest_m():.2f} m)")
@@ -89,6 +93,28 @@ def test_drifting_off_the_object_low_climbs_back_to_the_final_height():
     scene.vehicle_ne = (0.25, 0.0)  # past the abort radius: back up, and a go-around counted
     fly(target, scene, t_s, 0.1)
     assert not target.plunging and target.go_arounds == 1 and target.height_m == target.final_height_now_m()
+
+
+def test_off_the_object_on_the_way_down_it_holds_its_height_until_guidance_has_caught_up():
+    scene = Scene()
+    target = descend(scene)
+    scene.vehicle_ne = (0.3, 0.0)  # past the abort radius, high above the final height
+    fly(target, scene, 100.0, 3.0)
+    assert target.height_m == 4.0 and target.waits > 0
+    scene.vehicle_ne = (0.15, 0.0)  # within it: on down, at 0.5 m/s
+    fly(target, scene, 103.0, 2.0)
+    assert target.height_m == pytest.approx(3.0, abs=0.05)
+
+
+def test_the_last_part_starts_only_while_the_vehicle_moves_with_the_object():
+    scene = Scene()
+    target = descend(scene)
+    scene.vehicle_vel_ne = (0.4, 0.0)  # right over it, but sliding past it (a vehicle lagging the wave orbit)
+    t_s = fly(target, scene, 100.0, 8.0)
+    assert not target.plunging and target.height_m == target.final_height_now_m()
+    scene.vehicle_vel_ne = (0.2, 0.0)  # moving with it (within 0.3 m/s): the last part goes down
+    fly(target, scene, t_s, 3.0)
+    assert target.plunging and target.height_m == 0.0
 
 
 def test_the_desired_height_leads_a_lagging_vehicle_by_at_most_the_lead():

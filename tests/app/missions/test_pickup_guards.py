@@ -11,6 +11,7 @@ from app.missions.guards import (
     GuardContext,
     object_beyond_fence,
     object_in_gripper,
+    pickup_time_up,
     touchdown,
     touchdown_off_target,
 )
@@ -29,7 +30,7 @@ def ctx(estimates: Estimates, vehicle_ne=(0.0, 0.0), time_in_state_s: float = 5.
 
 def est(**kw) -> Estimates:
     target = TargetState(10.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    return Estimates(10.0, target=target, fix_age_s=0.1, converged_for_s=3.0, **kw)
+    return Estimates(10.0, **({"target": target, "fix_age_s": 0.1, "converged_for_s": 3.0} | kw))
 
 
 def test_the_mean_sea_counts_only_while_the_radar_reads_nothing():
@@ -47,6 +48,14 @@ def test_at_the_water_off_the_estimate_is_no_grab():
     assert touchdown_off_target(ctx(low, vehicle_ne=(0.2, 0.0)))
     assert touchdown_off_target(ctx(Estimates(10.0, height_over_mean_sea_m=0.2)))  # no estimate at all
     assert not touchdown_off_target(ctx(est(height_above_sea_m=1.5), vehicle_ne=(0.5, 0.0)))  # not at the water
+
+
+def test_at_the_water_with_a_stale_fix_is_no_grab():
+    """Over the estimate, but the object went out of view on the way down: the estimate is no longer trusted."""
+    fresh_s = load_mission("pickup").params.grab_fix_max_age_s
+    at_water = {"height_above_sea_m": None, "height_over_mean_sea_m": 0.2}
+    assert not touchdown_off_target(ctx(est(**at_water, fix_age_s=fresh_s - 0.05)))
+    assert touchdown_off_target(ctx(est(**at_water, fix_age_s=fresh_s + 0.05)))
 
 
 def test_in_the_gripper_only_after_looking_from_up_there_for_the_verify_time():
@@ -76,3 +85,11 @@ def test_an_object_beyond_the_geofence_is_beyond_reach():
     assert beyond(centre_ne=(0.0, 99.0))  # no estimate: where the search has drifted to
     assert not beyond(centre_ne=(0.0, 97.0))
     assert not beyond(target_ne=(60.0, 80.0), fence_m=400.0)
+
+
+def test_the_pickup_time_limit_counts_from_the_first_flying_state():
+    limit_s = PARAMS.pickup_time_limit_s
+    on_deck = ctx(est())
+    assert on_deck.airborne_for_s is None and not pickup_time_up(on_deck)
+    assert not pickup_time_up(dataclasses.replace(on_deck, airborne_for_s=limit_s - 1.0))
+    assert pickup_time_up(dataclasses.replace(on_deck, airborne_for_s=limit_s + 1.0))

@@ -22,7 +22,9 @@ from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
 
 
-async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, profile: str = "px4", **params):
+async def fly_pickup(
+    scenario: PickupScenario, wind: WindConfig | None, profile: str = "px4", events: EventLog | None = None, **params
+):
     settings = load_settings()
     calibrated = SIM_PROFILES[profile]
     vehicle = InProcessVehicle(
@@ -33,7 +35,13 @@ async def fly_pickup(scenario: PickupScenario, wind: WindConfig | None, profile:
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
     runners = []
     flight = await fly_mission(
-        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
+        vehicle,
+        table,
+        settings,
+        LoopClock(),
+        events or EventLog(None),
+        on_start=runners.append,
+        sensors=[world.sensors],
     )
     world.model = runners[0].mission  # the mission's estimates, for checks against the truth
     return flight, world, table.params
@@ -146,13 +154,20 @@ async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_
     runners: list = []
     table = load_mission("pickup")
     flight = await fly_mission(
-        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
+        vehicle,
+        table,
+        settings,
+        LoopClock(),
+        EventLog(None),
+        on_start=runners.append,
+        sensors=[world.sensors],
     )
     world.model = runners[0].mission
     out = world.outcome
     print(f"seed {seed} {kind}: {flight.result.outcome}, grabs {out.grabs}, {flight.figures['fixes_rejected']}")
     assert flight.result.outcome == "picked_up" and out.caught
-    assert all(g["error_m"] <= scenario.capture_radius_m for g in out.grabs)  # never off target on the water
+    assert all(g["error_m"] <= scenario.capture_radius_m for g in out.grabs)  # never off target on the water:
+    assert all(c["error_m"] <= scenario.capture_radius_m for c in out.contacts)  # not even without a grab
     assert_never_descends_low_without_a_fresh_fix(world, table.params)
 
 
@@ -215,3 +230,20 @@ async def test_the_search_drifts_with_the_forecast_current_and_finds_an_object_i
     standing, world, _ = await fly_pickup(scenario, WindConfig.off())
     print(standing.result)
     assert standing.result.outcome == "failed" and "APPROACH" not in standing.result.states_visited
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_after_the_pickup_time_limit_in_the_air_it_gives_up_and_comes_home():
+    """The object is nowhere near where it was reported: the search would go on for its own 400 s; the mission's
+    time budget in the air (here 90 s) ends it first, from whatever state it is in, and the vehicle comes home."""
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.0, object_start_ne_m=(300.0, -300.0))
+    events = EventLog(None)
+    states: list[dict] = []
+    events.subscribe(["state"], states.append)
+    flight, _, _ = await fly_pickup(scenario, WindConfig.off(), events=events, pickup_time_limit_s=90.0)
+    print([(r["t_s"], r["to"], r["reason"]) for r in states])
+    gave_up = next(r for r in states if r["reason"] == "pickup_time_up")
+    airborne_s = next(r["t_s"] for r in states if r["to"] == "TAKEOFF")
+    assert gave_up["from"] == "SEARCH" and gave_up["to"] == "RETURN"
+    assert 90.0 < gave_up["t_s"] - airborne_s < 91.0
+    assert flight.result.outcome == "failed" and flight.result.final_state == "RETURNED_EMPTY"
