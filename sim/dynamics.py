@@ -200,32 +200,27 @@ class Dynamics:
 
     @property
     def state(self) -> VehicleState:
-        p, v, a = self._p, self._v, self._a
-        return VehicleState(
-            pos_ned_m=(p[0], p[1], p[2]),
-            vel_ned_mps=(v[0], v[1], v[2]),
-            acc_ned_mps2=(a[0], a[1], a[2]),
-            roll_rad=self._roll_rad,
-            pitch_rad=self._pitch_rad,
-            yaw_rad=self._yaw_rad,
-            rates_radps=self._rates,
-            on_ground=self._on_ground,
-            thrust_mps2=self._thrust_mps2,
-            wind_ned_mps=self._wind_ned_mps,
-        )
+        p, v = self._p, self._v
+        return self._state_at((p[0], p[1], p[2]), (v[0], v[1], v[2]))
 
     @property
     def estimate(self) -> VehicleState:
         """What the autopilot believes: the truth with the estimator's error (the velocity error is
         dropped while on the ground, where EKF2/EKF3 fuse zero velocity)."""
+        p, v = self._p, self._v
+        true_pos, true_vel = (p[0], p[1], p[2]), (v[0], v[1], v[2])
         if self.estimator is None:
-            return self.state
-        p, v, a = self._p, self._v, self._a
-        true_vel = (v[0], v[1], v[2])
-        pos, vel = self.estimator.apply((p[0], p[1], p[2]), true_vel)
-        return VehicleState(  # built directly, not as a replace() of ``state``: the hottest property of a run
-            pos_ned_m=pos,
-            vel_ned_mps=true_vel if self._on_ground else vel,
+            return self._state_at(true_pos, true_vel)
+        pos, vel = self.estimator.apply(true_pos, true_vel)
+        return self._state_at(pos, true_vel if self._on_ground else vel)
+
+    def _state_at(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> VehicleState:
+        """The vehicle's state with this position and velocity (the truth's, or the estimate's: built directly,
+        not as a replace() of ``state`` — ``estimate`` is the hottest property of a run)."""
+        a = self._a
+        return VehicleState(
+            pos_ned_m=pos_ned_m,
+            vel_ned_mps=vel_ned_mps,
             acc_ned_mps2=(a[0], a[1], a[2]),
             roll_rad=self._roll_rad,
             pitch_rad=self._pitch_rad,
