@@ -94,6 +94,11 @@ class LinearTargetFilter(ABC):
     def velocity_acceleration(self, x: Array) -> tuple[Array, Array]:
         """Horizontal velocity and acceleration (2-vectors) implied by a state."""
 
+    def mean_motion(self, x: Array) -> tuple[Array, Array]:
+        """The object's mean position and drift velocity (2-vectors) in a state, for predicting seconds ahead,
+        beyond what the filter's own estimate covers; the whole motion unless a model separates out its waves."""
+        return self.H @ x, self.velocity_acceleration(x)[0]
+
     # ---- public ---------------------------------------------------------------------------------
 
     def reset(self) -> None:
@@ -132,6 +137,16 @@ class LinearTargetFilter(ABC):
             (float(acc[0]), float(acc[1]), 0.0),
             ((float(cov[0, 0]), float(cov[0, 1])), (float(cov[1, 0]), float(cov[1, 1]))),
         )
+
+    def drifted(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]] | None:
+        """Where the object's mean drift (``mean_motion`` at the last fix) takes it by ``t_s``, and that drift
+        (NE m, NE m/s): still answered after the timeout, until the filter is reset or re-initialised (``None``
+        before any fix)."""
+        if self.x is None:
+            return None
+        pos, vel = self.mean_motion(self.x)
+        dt_s = max(0.0, t_s - self.t_s)
+        return (float(pos[0] + vel[0] * dt_s), float(pos[1] + vel[1] * dt_s)), (float(vel[0]), float(vel[1]))
 
     # ---- internals ------------------------------------------------------------------------------
 

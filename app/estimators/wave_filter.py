@@ -146,6 +146,11 @@ class WaveFilter(LinearTargetFilter):
         P[0, 0], P[n, n], P[0, n], P[n, 0] = R[0, 0], R[1, 1], R[0, 1], R[1, 0]
         return x, P
 
+    def mean_motion(self, x: Array) -> tuple[Array, Array]:
+        """The current's part: p_c and v_c per axis (the oscillators average out over a few periods)."""
+        n = self.n_axis
+        return np.array([x[0], x[n]]), np.array([x[1], x[n + 1]])
+
     def velocity_acceleration(self, x: Array) -> tuple[Array, Array]:
         n = self.n_axis
         vel, acc = np.zeros(2), np.zeros(2)

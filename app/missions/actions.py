@@ -224,10 +224,17 @@ async def start_verify(io: MissionIO) -> None:
     verify = VerifyTarget(m, io.boundary.telemetry, io.params.verify_height_m, (pv.pos_ned_m[0], pv.pos_ned_m[1]))
     await _off_the_water(io, lambda: io.setpoints.engage(verify, allow_below_min=True), io.params.verify_height_m)
     m.verify_up_t_s = None
-    while True:  # up (by the radar, as the guards judge it) since when: VERIFY looks from there
-        h = m.height_above_sea_m(io.now_s())
-        if h is not None and h >= io.params.verify_height_m - 0.5:
-            m.verify_up_t_s = io.now_s()
+    while True:  # up (by the radar, as the guards judge it) and over where a missed object would be: VERIFY looks
+        t_s = io.now_s()
+        h, drifted, pv = m.height_above_sea_m(t_s), m.drifted(t_s), io.boundary.telemetry().pos_vel
+        up = h is not None and h >= io.params.verify_height_m - 0.5
+        if up and h is not None and pv is not None and drifted is not None:
+            # the drifted point well inside the view (a quarter footprint from its edge): the mean drift is only
+            # an expectation, and ArduCopter's takeoff from the water leaves it metres behind
+            (n, e), _ = drifted
+            up = math.hypot(pv.pos_ned_m[0] - n, pv.pos_ned_m[1] - e) <= m.footprint_m(h) / 4.0
+        if up:
+            m.verify_up_t_s = t_s
             return
         await asyncio.sleep(0.05)
 

@@ -372,9 +372,12 @@ class PickupEstimates:
             return self._reject("size")
         obs = fix.observation
         n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]
-        g = self.grab_ne_m
-        if g is not None and math.hypot(n_m - g[0], e_m - g[1]) <= c.grab_sighting_radius_m:
-            self._grab_sighting_t_s = t_s  # the right size, on the sea where we grabbed: the grab missed it
+        g, d = self.grab_ne_m, self.drifted(t_s)
+        near = [] if g is None else [g] if d is None else [g, d[0]]
+        if any(math.hypot(n_m - p[0], e_m - p[1]) <= c.grab_sighting_radius_m for p in near):
+            # the right size, on the sea where we grabbed (or where the object would have drifted from there): the
+            # grab missed it
+            self._grab_sighting_t_s = t_s
         if not self.filter.initialised or self.filter.estimate(t_s) is None:
             if not self._confirmed(obs):
                 self.fix_log.append((t_s, n_m, e_m, "confirming"))
@@ -424,6 +427,11 @@ class PickupEstimates:
         if self._estimate_cache is None or self._estimate_cache[0] != key:
             self._estimate_cache = (key, self.filter.estimate(t_s))
         return self._estimate_cache[1]
+
+    def drifted(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]] | None:
+        """Where the object's mean drift at its last fix takes it by ``t_s``, and that drift (after the estimate
+        timed out too: a missed object drifts on, with the current and pushed off by the rotors' wash)."""
+        return self.filter.drifted(t_s)
 
     def height_above_sea_m(self, t_s: float) -> float | None:
         h = self._height

@@ -156,6 +156,34 @@ def test_wave_filter_predicts_a_swell_one_second_ahead_better_than_cv():
     assert p95["wave"] < 0.5 * p95["cv"], p95
 
 
+def test_after_the_timeout_the_drift_still_says_where_the_object_went_without_its_waves():
+    """``drifted``: the wave filter's current alone (its swell averages out over seconds), carried on past the
+    estimate's timeout; the constant-velocity filter's whole velocity."""
+    rng = np.random.default_rng(1)
+    w = 2 * math.pi / 5.6
+
+    def truth(t):
+        return 0.8 * t + 0.5 * math.sin(w * t), -0.4 * t + 0.3 * math.cos(w * t)
+
+    wave, cv = WaveFilter(hs_m=1.25, tp_s=5.6), ConstantVelocityFilter()
+    assert wave.drifted(0.0) is None
+    for k in range(800):  # 40 s of fixes at 20 Hz
+        t = 0.05 * k
+        n, e = truth(t)
+        z = fix(t, n + rng.normal(0, 0.01), e + rng.normal(0, 0.01), ((1e-4, 0.0), (0.0, 1e-4)))
+        wave.update(z)
+        cv.update(z)
+    t_last, t_later = 0.05 * 799, 0.05 * 799 + 8.0
+    assert wave.estimate(t_later) is None  # timed out
+    (n, e), (vn, ve) = wave.drifted(t_later)
+    assert math.hypot(vn - 0.8, ve + 0.4) < 0.1, (vn, ve)
+    # the mean (current) track, not a swell extrapolated for 8 s: within the swell's amplitude of the mean track
+    mean_n, mean_e = 0.8 * t_later, -0.4 * t_later
+    assert math.hypot(n - mean_n, e - mean_e) < 0.6, (n, e, mean_n, mean_e)
+    (_, _), (cvn, cve) = cv.drifted(t_last)
+    assert (cvn, cve) == (float(cv.x[2]), float(cv.x[3]))
+
+
 def test_the_mission_file_chooses_the_filter():
     from app.estimators.factory import make_target_filter
     from app.missions.params import MissionParams

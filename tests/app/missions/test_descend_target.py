@@ -29,6 +29,7 @@ class Scene:
         self.vehicle_ne = (0.0, 0.0)
         self.vehicle_vel_ne = (0.0, 0.0)  # the object's estimate stands still
         self.vehicle_height_m = 4.0
+        self.drift: tuple[tuple[float, float], tuple[float, float]] | None = None  # the filter's mean drift
 
     # -- what DescendTarget reads --
     def snapshot(self, t_s: float) -> Estimates:
@@ -39,6 +40,9 @@ class Scene:
 
     def estimate(self, t_s: float) -> TargetEstimate:
         return TargetEstimate(t_s, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), ((0.01, 0.0), (0.0, 0.01)))
+
+    def drifted(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float]] | None:
+        return self.drift
 
     def sea_reference(self, t_s: float) -> tuple[float, float]:
         return 0.0, 0.0
@@ -133,3 +137,14 @@ def test_verify_follows_the_estimate_up_and_stays_where_it_was_last_when_it_is_g
     scene.estimate = lambda t_s: None  # type: ignore[method-assign]  # the lock timed out
     state = target.target_at(101.0)
     assert state.pos_ned_m == (0.0, 0.0, -3.0) and state.vel_ned_mps == (0.0, 0.0, 0.0)
+
+
+def test_verify_without_an_estimate_follows_where_the_objects_drift_takes_it():
+    scene = Scene()
+    target = VerifyTarget(scene, scene.telemetry, 3.0, (5.0, 5.0))  # type: ignore[arg-type]
+    scene.estimate = lambda t_s: None  # type: ignore[method-assign]  # the lock timed out
+    scene.drift = ((2.0, -1.0), (0.6, -0.3))  # the filter's current, carried on from its last fix
+    state = target.target_at(101.0)
+    assert state.pos_ned_m == (2.0, -1.0, -3.0) and state.vel_ned_mps == (0.6, -0.3, 0.0)
+    scene.drift = None  # the filter was reset: stays where the drift was last
+    assert target.target_at(102.0).pos_ned_m == (2.0, -1.0, -3.0)
