@@ -220,3 +220,31 @@ def test_results_are_on_disk_as_they_come_in_and_an_evaluation_that_dies_keeps_t
         evaluate_cli.main([*CLI, "--no-progress", "--out", str(tmp_path)])
     kept = [json.loads(x) for x in (tmp_path / evaluate_cli.PARTIAL_RESULTS).read_text().splitlines()]
     assert kept == flown and not (tmp_path / "results.jsonl").exists()
+
+
+def test_a_glyph_metres_off_the_tracked_marker_does_not_hide_it_but_hides_it_from_a_fresh_search():
+    """The glyph clutter as the marker detector meets it: searching the whole frame, the ID twice gives no
+    detection; tracking the marker (reported the frame before), the window around it does not reach a glyph 4 m
+    off, so the marker is still reported."""
+    from types import SimpleNamespace
+
+    from sim.sea import FloatingObject
+
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.0, object_start_ne_m=(40.0, 20.0))
+    world = EvalPickupWorld(InProcessVehicle(seed=1, wind=WindConfig.off()), scenario, load_settings(), "glyph")
+    world.glyph = FloatingObject(world.sea, start_ne_m=(44.0, 20.0))  # 4 m north of the object
+    obj = world.object.state(0.0).pos_ned_m
+
+    def seen_from(n_m: float, height_m: float) -> bool:
+        truth = SimpleNamespace(pos_ned_m=(n_m, 20.0, -height_m), roll_rad=0.0, pitch_rad=0.0, yaw_rad=0.0)
+        seen = world._largest_seen(0.0, truth, obj)
+        return seen.corners_px is not None
+
+    assert not seen_from(42.0, 12.0)  # both in view, nothing tracked: no detection
+    assert world._tracked_ne_m is None and world.glyph_frames == 0
+    assert seen_from(40.0, 3.0)  # low over the marker: the glyph is out of view
+    assert world._tracked_ne_m == (float(obj[0]), float(obj[1]))
+    assert seen_from(42.0, 12.0)  # both in view again, but the marker is tracked
+    assert world.glyph_frames == 0
+    world._tracked_ne_m = None  # the track lost: a fresh search sees the ID twice
+    assert not seen_from(42.0, 12.0)
