@@ -46,30 +46,12 @@ class Flight:
     safety: dict[str, Any]  # what the boundary refused, dropped or had to do (watchdog)
 
 
-def guidance_params(settings: Settings, autopilot: Autopilot) -> ConstantBearingParams:
-    """Constant-bearing guidance as ``settings.guidance`` sets it for ``autopilot`` (its compensation and, where
-    given, its own Δ and lead)."""
-    g = settings.guidance
-    comp = g.ardupilot if autopilot is Autopilot.ARDUPILOT else g.px4
-    return ConstantBearingParams(
-        g.approach_speed_max_mps,
-        g.transient_distance_m if comp.transient_distance_m is None else comp.transient_distance_m,
-        g.velocity_lead_s if comp.velocity_lead_s is None else comp.velocity_lead_s,
-        comp.integral_gain_per_s2,
-        g.integral_max_mps,
-        g.integral_within_m,
-        comp.inconsistency_tau_s,
-        g.inconsistency_max_mps,
-        comp.velocity_error_gain,
-        g.velocity_error_max_mps,
-    )
-
-
 def build_flight(
     vehicle: Vehicle, table: MissionTable, settings: Settings, clock: Clock, events: EventLog
 ) -> tuple[VehicleBoundary, SetpointLoop, MissionRunner]:
     """The boundary, the setpoint loop and the runner for one mission on ``vehicle``."""
     g, e = settings.guidance, settings.envelope
+    comp = g.ardupilot if vehicle.autopilot is Autopilot.ARDUPILOT else g.px4
     boundary = VehicleBoundary(
         vehicle,
         clock,
@@ -87,7 +69,18 @@ def build_flight(
         boundary,
         clock,
         events,
-        guidance_params(settings, vehicle.autopilot),
+        ConstantBearingParams(
+            g.approach_speed_max_mps,
+            g.transient_distance_m,
+            g.velocity_lead_s,
+            comp.integral_gain_per_s2,
+            g.integral_max_mps,
+            g.integral_within_m,
+            comp.inconsistency_tau_s,
+            g.inconsistency_max_mps,
+            comp.velocity_error_gain,
+            g.velocity_error_max_mps,
+        ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,
         settings.telemetry.position_stale_s,

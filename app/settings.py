@@ -79,12 +79,6 @@ class AutopilotCompensation(_Model):
     velocity_error_gain: float = Field(
         0.0, ge=0.0, le=5.0, description="K_v: v_sp += K_v (v_sp − v̂) horizontally; 0: off"
     )
-    transient_distance_m: float | None = Field(
-        None, ge=0.01, le=20.0, description="Δ_p̃ for this autopilot (gain near the target U/Δ); null: guidance's, m"
-    )
-    velocity_lead_s: float | None = Field(
-        None, ge=0.0, le=2.0, description="τ_lead for this autopilot; null: guidance's, s"
-    )
 
 
 class GuidanceSettings(_Model):
