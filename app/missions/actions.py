@@ -169,12 +169,16 @@ async def start_search(io: MissionIO) -> None:
     now_s = io.now_s()
     waypoints = expanding_square(m.search_centre_at(now_s), spacing_m, p.search_max_radius_m)
     m.search = SearchPattern(waypoints, -p.search_altitude_m, p.search_speed_mps, now_s, m.search_drift_ne_mps)
-    io.setpoints.engage(m.search)
+    search = m.search
+    # entered from the water too (TRACK, taking off after an off-target touchdown, lost the object meanwhile and
+    # its entry was cancelled): on ArduPilot a landed vehicle would sit there at ground idle
+    await _off_the_water(io, lambda: io.setpoints.engage(search), p.verify_height_m)
 
 
 async def start_approach(io: MissionIO) -> None:
-    """Above the estimate at the search height above the sea."""
-    io.setpoints.engage(ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.search_altitude_m))
+    """Above the estimate at the search height above the sea (from the water first, as ``start_search``)."""
+    target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.search_altitude_m)
+    await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 async def start_track(io: MissionIO) -> None:

@@ -299,9 +299,10 @@ class MissionRunner:
         now_s = self._clock.now_s()
         self._events.write(now_s, "state", **{"from": self.state or None, "to": name, "reason": reason})
         previous = self.state
-        entry = self._entry
+        entry, unfinished = self._entry, None
         if entry is not None and not entry.done() and entry is not asyncio.current_task():
             entry.cancel()
+            unfinished = entry
         self.state = name
         self._entry_t_s = now_s
         self._awaiting_authorization_noted = False
@@ -317,10 +318,20 @@ class MissionRunner:
             self._result = RunResult(spec.terminal, outcome_reason, self.states_visited, name)
             self._events.write(now_s, "run", event="finished", outcome=spec.terminal, reason=reason, previous=previous)
         assert self._tg is not None
-        self._entry = self._tg.create_task(self._run_entry(name, spec, previous), name=f"mission.entry.{name}")
+        self._entry = self._tg.create_task(
+            self._run_entry(name, spec, previous, unfinished), name=f"mission.entry.{name}"
+        )
 
-    async def _run_entry(self, name: str, spec: StateSpec, previous: str) -> None:
+    async def _run_entry(
+        self, name: str, spec: StateSpec, previous: str, unfinished: asyncio.Task[None] | None = None
+    ) -> None:
         try:
+            if unfinished is not None:
+                # the cancelled entry of the state before finishes first: a leave_offboard it began runs to its
+                # HOLD (shielded), and only then can this entry tell whether it must take offboard again (eval
+                # run 51: SEARCH entered mid-way through TRACK's leave for a takeoff from the water found offboard
+                # still ours, the HOLD came after, and the vehicle sat on the water for 235 s)
+                await asyncio.wait([unfinished])
             if spec.control != "offboard" and not spec.manual and not spec.abort:
                 await self.boundary.leave_offboard(f"{previous} → {name}")
             entry = spec.entry

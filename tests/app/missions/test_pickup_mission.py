@@ -14,6 +14,7 @@ import pytest
 from app.clock import LoopClock
 from app.eventlog import EventLog
 from app.flight import fly_mission
+from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.settings import load_settings
 from sim.airframes import SIM_PROFILES
@@ -264,4 +265,44 @@ async def test_a_missed_object_drifting_out_of_view_during_the_takeoff_from_the_
     assert [g["caught"] for g in grabs] == [False, True]  # the first grab slipped: the object stayed on the sea
     i = visited.index("VERIFY")
     assert visited[i : i + 2] == ["VERIFY", "REGRAB"]  # seen from above, not taken as caught
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+
+
+@pytest.mark.looptime(noop_cycles=2)
+@pytest.mark.parametrize("profile", ["px4", "ardupilot"])
+async def test_a_resume_that_comes_while_hold_is_still_leaving_offboard_takes_offboard_again(profile):
+    """A ground station's hold in TRACK leaves offboard (zero velocity for 0.5 s, then HOLD); a resume 0.2 s later
+    enters TRACK while that is still going on. TRACK must take offboard again once the HOLD has gone out: checked
+    from the vehicle's side, it flies offboard again and follows the object to the pickup (eval run 51: the same
+    race after a takeoff from the water left the vehicle in BRAKE on the sea for 235 s)."""
+    settings = load_settings()
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
+    calibrated = SIM_PROFILES[profile]
+    vehicle = InProcessVehicle(
+        seed=1, wind=WindConfig.off(), profile=calibrated.autopilot, vehicle_params=calibrated.airframe
+    )
+    world = PickupWorld(vehicle, scenario, settings)
+    runners, seen = [], {}
+
+    async def hold_then_resume_at_once():
+        while not runners or runners[0].state != "TRACK":  # noqa: ASYNC110
+            await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
+        await asyncio.sleep(1.0)
+        assert runners[0].request("hold") is None
+        await asyncio.sleep(0.2)
+        seen["resume_s"] = asyncio.get_running_loop().time()
+        assert runners[0].request("resume") is None
+        await asyncio.sleep(4.0)
+        seen["mode"] = vehicle.truth().flight_mode
+
+    watcher = asyncio.create_task(hold_then_resume_at_once())
+    flight = await fly_mission(
+        vehicle, load_mission("pickup"), settings, LoopClock(), EventLog(None),
+        on_start=runners.append, sensors=[world.sensors],
+    )  # fmt: skip
+    watcher.cancel()
+    print(seen, flight.result.states_visited)
+    assert seen["mode"] is FlightMode.OFFBOARD  # 4 s after the resume (ArduPilot: GUIDED)
+    modes = [r["mode"] for r in vehicle.records if r["event"] == "mode" and 0 <= r["t_s"] - seen["resume_s"] <= 4.0]
+    assert modes == ["HOLD", "OFFBOARD"], modes  # the hold's HOLD went out after the resume, then offboard again
     assert flight.result.outcome == "picked_up" and world.outcome.caught
