@@ -70,13 +70,17 @@ ESTIMATORS: dict[str, EstimatorErrorParams] = {"perfect": PERFECT, "gnss": GNSS,
 
 class _GaussMarkov:
     def __init__(self, sigma: float, tau_s: float, rng: random.Random) -> None:
-        self.sigma, self.tau_s, self._rng = sigma, tau_s, rng
+        self.sigma, self.tau_s, self._gauss = sigma, tau_s, rng.gauss
         self.x = rng.gauss(0.0, sigma) if sigma > 0.0 else 0.0
+        self._dt_s, self._a, self._b = math.nan, 0.0, 0.0  # a = e^{−dt/τ} and σ·√(1 − a²) for the last dt
 
     def step(self, dt_s: float) -> float:
         if self.sigma > 0.0:
-            a = math.exp(-dt_s / self.tau_s)
-            self.x = self.x * a + self.sigma * math.sqrt(1.0 - a * a) * self._rng.gauss(0.0, 1.0)
+            if dt_s != self._dt_s:
+                a = math.exp(-dt_s / self.tau_s)
+                self._dt_s, self._a, self._b = dt_s, a, self.sigma * math.sqrt(1.0 - a * a)
+            # x ← x·a + σ·√(1 − a²)·N(0, 1)
+            self.x = self.x * self._a + self._b * self._gauss(0.0, 1.0)
         return self.x
 
 

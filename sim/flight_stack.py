@@ -358,7 +358,7 @@ class FlightStack:
         return b is Behaviour.LAND or (b is Behaviour.RTL and self.nav.rtl_phase == "land")
 
     def _update_landed_state(self, t_s: float) -> None:
-        on_ground = self.dyn.state.on_ground
+        on_ground = self.dyn.on_ground
         update = self.land_detector.update(t_s, self.landed_state, on_ground, self._taking_off(), self._landing_phase())
         if update.detected == "takeoff":
             self._statustext("Takeoff detected", SEVERITY_INFO)
