@@ -197,7 +197,9 @@ class Dynamics:
         self._thrust_mps2 = 0.0
         self._on_ground = self._p[2] >= self.ground_down_m
         self._wind_ned_mps = self.wind.wind_ned_mps
-        self._estimate: VehicleState | None = None  # built at most once per step (the hottest read of a run)
+        # the estimate, built at most once per step (the hottest read of a run): position and velocity, and the state
+        self._estimate_pv: tuple[Vec3, Vec3] | None = None
+        self._estimate: VehicleState | None = None
         pr = self.params
         self._tilt_max_rad = math.radians(pr.tilt_max_deg)
         self._tan_tilt_max = math.tan(self._tilt_max_rad)
@@ -220,15 +222,26 @@ class Dynamics:
         dropped while on the ground, where EKF2/EKF3 fuse zero velocity)."""
         est = self._estimate
         if est is None:
+            est = self._estimate = self._state_at(*self.estimate_pos_vel())
+        return est
+
+    def estimate_pos_vel(self) -> tuple[Vec3, Vec3]:
+        """The estimate's position and velocity alone: what the controllers read every step."""
+        pv = self._estimate_pv
+        if pv is None:
             p, v = self._p, self._v
             true_pos, true_vel = (p[0], p[1], p[2]), (v[0], v[1], v[2])
             if self.estimator is None:
-                est = self._state_at(true_pos, true_vel)
+                pv = (true_pos, true_vel)
             else:
                 pos, vel = self.estimator.apply(true_pos, true_vel)
-                est = self._state_at(pos, true_vel if self._on_ground else vel)
-            self._estimate = est
-        return est
+                pv = (pos, true_vel if self._on_ground else vel)
+            self._estimate_pv = pv
+        return pv
+
+    def _moved(self) -> None:
+        """The state (or the estimator's error, or the wind) changed: the estimate is built anew when read."""
+        self._estimate_pv = self._estimate = None
 
     def _state_at(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> VehicleState:
         """The vehicle's state with this position and velocity (the truth's, or the estimate's: built directly,
@@ -261,7 +274,7 @@ class Dynamics:
         """Begin in flight at ``vel_ned_mps`` (for replays that start mid-air)."""
         self._on_ground = False
         self._v = list(vel_ned_mps)
-        self._estimate = None
+        self._moved()
         if self._shaper is not None:
             self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
 
@@ -280,7 +293,7 @@ class Dynamics:
         if v_h > pr.vel_hor_max_mps:
             vn_sp, ve_sp = vn_sp * pr.vel_hor_max_mps / v_h, ve_sp * pr.vel_hor_max_mps / v_h
         vd_sp = _clamp(vel_sp[2], -pr.vel_up_max_mps, pr.vel_down_max_mps)
-        v = self.estimate.vel_ned_mps  # the controller acts on the estimate
+        v = self.estimate_pos_vel()[1]  # the controller acts on the estimate
         e = (vn_sp - v[0], ve_sp - v[1], vd_sp - v[2])
         # a_sp = K_p e + I − K_d a
         ax = pr.xy_vel_p_acc * e[0] + self._vel_int[0] - pr.xy_vel_d_acc * self._a[0] + acc_ff[0]
@@ -347,21 +360,21 @@ class Dynamics:
 
         if self.estimator is not None:
             self.estimator.step(dt_s)
-        self._estimate = None  # the wind and the estimator's error moved on
+        self._moved()  # the wind and the estimator's error moved on
         if control.motors_on:
             vel_sp, acc_ff = control.vel_sp_ned_mps, (0.0, 0.0, 0.0)
             if self._shaper is not None:
-                est = self.estimate
+                est_pos, est_vel = self.estimate_pos_vel()
                 if self._on_ground or not control.shaped:  # the trajectory starts where the vehicle is
-                    self._shaper.reset(est.pos_ned_m, est.vel_ned_mps)
+                    self._shaper.reset(est_pos, est_vel)
                 if control.shaped:
-                    vel_sp, acc_ff = self._shaper.step(dt_s, vel_sp, est.pos_ned_m)
+                    vel_sp, acc_ff = self._shaper.step(dt_s, vel_sp, est_pos)
             acc_sp = self._acceleration_setpoint(vel_sp, dt_s, acc_ff)
             roll_sp, pitch_sp, thrust = self._attitude_setpoint(acc_sp)
         else:
             self.reset_integrators()
             if self._shaper is not None:
-                self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
+                self._shaper.reset(*self.estimate_pos_vel())
             roll_sp, pitch_sp, thrust = 0.0, 0.0, 0.0
         if self._on_ground and not control.motors_on:
             roll_sp = pitch_sp = 0.0
@@ -420,4 +433,4 @@ class Dynamics:
             wrap_pi(self._yaw_rad - yaw0) / dt_s,
         )
         self.battery.step(dt_s, thrust, control.motors_on, armed)
-        self._estimate = None
+        self._moved()
