@@ -59,12 +59,12 @@ class EventLog:
         with self._lock:
             self.counts[kind] = self.counts.get(kind, 0) + 1
             listeners = self._listeners
-        if self._thread is None and not listeners:
-            return
+        wanted = [listener for kinds, listener in listeners if kind in kinds]
+        if self._thread is None and not wanted:
+            return  # nobody reads this record: it is only counted
         record = {"t_s": round(t_s, 4), "kind": kind, **_clean(fields)}
-        for kinds, listener in listeners:
-            if kind in kinds:
-                listener(record)
+        for listener in wanted:
+            listener(record)
         if self._thread is not None:
             self._queue.put(record)
 

@@ -72,7 +72,7 @@ class Mode(Enum):
 
     @property
     def behaviour(self) -> Behaviour:
-        return self.value[0]
+        return self._value_[0]  # not .value: enum's descriptor is slow, and this is read every physics step
 
     @property
     def profile(self) -> Profile:
@@ -81,7 +81,7 @@ class Mode(Enum):
     @property
     def flight_mode(self) -> FlightMode:
         """The name MAVSDK 4 reports for this mode."""
-        return self.value[2]
+        return self._value_[2]
 
     @property
     def custom_mode(self) -> int:

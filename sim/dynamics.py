@@ -197,6 +197,14 @@ class Dynamics:
         self._thrust_mps2 = 0.0
         self._on_ground = self._p[2] >= self.ground_down_m
         self._wind_ned_mps = self.wind.wind_ned_mps
+        # the estimate, built at most once per step (the hottest read of a run): position and velocity, and the state
+        self._estimate_pv: tuple[Vec3, Vec3] | None = None
+        self._estimate: VehicleState | None = None
+        pr = self.params
+        self._tilt_max_rad = math.radians(pr.tilt_max_deg)
+        self._tan_tilt_max = math.tan(self._tilt_max_rad)
+        self._yaw_rate_max_radps = math.radians(pr.yaw_rate_max_dps)
+        self._attitude_dt_s, self._attitude_k = math.nan, 0.0  # the lag's 1 − e^{−dt/τ}, for the last dt
 
     @property
     def state(self) -> VehicleState:
@@ -204,15 +212,36 @@ class Dynamics:
         return self._state_at((p[0], p[1], p[2]), (v[0], v[1], v[2]))
 
     @property
+    def on_ground(self) -> bool:
+        """Resting on the ground (or the water) under the vehicle."""
+        return self._on_ground
+
+    @property
     def estimate(self) -> VehicleState:
         """What the autopilot believes: the truth with the estimator's error (the velocity error is
         dropped while on the ground, where EKF2/EKF3 fuse zero velocity)."""
-        p, v = self._p, self._v
-        true_pos, true_vel = (p[0], p[1], p[2]), (v[0], v[1], v[2])
-        if self.estimator is None:
-            return self._state_at(true_pos, true_vel)
-        pos, vel = self.estimator.apply(true_pos, true_vel)
-        return self._state_at(pos, true_vel if self._on_ground else vel)
+        est = self._estimate
+        if est is None:
+            est = self._estimate = self._state_at(*self.estimate_pos_vel())
+        return est
+
+    def estimate_pos_vel(self) -> tuple[Vec3, Vec3]:
+        """The estimate's position and velocity alone: what the controllers read every step."""
+        pv = self._estimate_pv
+        if pv is None:
+            p, v = self._p, self._v
+            true_pos, true_vel = (p[0], p[1], p[2]), (v[0], v[1], v[2])
+            if self.estimator is None:
+                pv = (true_pos, true_vel)
+            else:
+                pos, vel = self.estimator.apply(true_pos, true_vel)
+                pv = (pos, true_vel if self._on_ground else vel)
+            self._estimate_pv = pv
+        return pv
+
+    def _moved(self) -> None:
+        """The state (or the estimator's error, or the wind) changed: the estimate is built anew when read."""
+        self._estimate_pv = self._estimate = None
 
     def _state_at(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> VehicleState:
         """The vehicle's state with this position and velocity (the truth's, or the estimate's: built directly,
@@ -245,6 +274,7 @@ class Dynamics:
         """Begin in flight at ``vel_ned_mps`` (for replays that start mid-air)."""
         self._on_ground = False
         self._v = list(vel_ned_mps)
+        self._moved()
         if self._shaper is not None:
             self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
 
@@ -263,7 +293,7 @@ class Dynamics:
         if v_h > pr.vel_hor_max_mps:
             vn_sp, ve_sp = vn_sp * pr.vel_hor_max_mps / v_h, ve_sp * pr.vel_hor_max_mps / v_h
         vd_sp = _clamp(vel_sp[2], -pr.vel_up_max_mps, pr.vel_down_max_mps)
-        v = self.estimate.vel_ned_mps  # the controller acts on the estimate
+        v = self.estimate_pos_vel()[1]  # the controller acts on the estimate
         e = (vn_sp - v[0], ve_sp - v[1], vd_sp - v[2])
         # a_sp = K_p e + I − K_d a
         ax = pr.xy_vel_p_acc * e[0] + self._vel_int[0] - pr.xy_vel_d_acc * self._a[0] + acc_ff[0]
@@ -272,7 +302,7 @@ class Dynamics:
         az_lim = _clamp(az, -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
         # What the tilt limit lets through horizontally once the vertical is served (PX4: thrust_max_xy);
         # MPC_ACC_HOR_MAX shapes PX4's own trajectories, not offboard velocity control.
-        acc_h_max = (G_MPS2 - az_lim) * math.tan(math.radians(pr.tilt_max_deg))
+        acc_h_max = (G_MPS2 - az_lim) * self._tan_tilt_max
         a_h = math.hypot(ax, ay)
         ax_lim, ay_lim = ax, ay
         if a_h > acc_h_max:
@@ -301,10 +331,10 @@ class Dynamics:
         fz_up = G_MPS2 - acc_sp[2]  # > 0: upward thrust component needed
         fx, fy = acc_sp[0], acc_sp[1]
         f_h = math.hypot(fx, fy)
-        tilt_max_rad = math.radians(pr.tilt_max_deg)
+        tilt_max_rad = self._tilt_max_rad
         tilt_rad = math.atan2(f_h, fz_up)
         if tilt_rad > tilt_max_rad:
-            scale = fz_up * math.tan(tilt_max_rad) / f_h
+            scale = fz_up * self._tan_tilt_max / f_h
             fx, fy, tilt_rad = fx * scale, fy * scale, tilt_max_rad
         norm = math.sqrt(fx * fx + fy * fy + fz_up * fz_up)
         # −z_b = (fx, fy, −fz_up)/|f|; rotate into the heading frame to read off roll and pitch.
@@ -330,29 +360,32 @@ class Dynamics:
 
         if self.estimator is not None:
             self.estimator.step(dt_s)
+        self._moved()  # the wind and the estimator's error moved on
         if control.motors_on:
             vel_sp, acc_ff = control.vel_sp_ned_mps, (0.0, 0.0, 0.0)
             if self._shaper is not None:
-                est = self.estimate
+                est_pos, est_vel = self.estimate_pos_vel()
                 if self._on_ground or not control.shaped:  # the trajectory starts where the vehicle is
-                    self._shaper.reset(est.pos_ned_m, est.vel_ned_mps)
+                    self._shaper.reset(est_pos, est_vel)
                 if control.shaped:
-                    vel_sp, acc_ff = self._shaper.step(dt_s, vel_sp, est.pos_ned_m)
+                    vel_sp, acc_ff = self._shaper.step(dt_s, vel_sp, est_pos)
             acc_sp = self._acceleration_setpoint(vel_sp, dt_s, acc_ff)
             roll_sp, pitch_sp, thrust = self._attitude_setpoint(acc_sp)
         else:
             self.reset_integrators()
             if self._shaper is not None:
-                self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
+                self._shaper.reset(*self.estimate_pos_vel())
             roll_sp, pitch_sp, thrust = 0.0, 0.0, 0.0
         if self._on_ground and not control.motors_on:
             roll_sp = pitch_sp = 0.0
 
         # Attitude: first-order lag on roll/pitch; yaw rate-limited P towards the setpoint.
-        k = 1.0 - math.exp(-dt_s / pr.attitude_tau_s)
+        if dt_s != self._attitude_dt_s:
+            self._attitude_dt_s, self._attitude_k = dt_s, 1.0 - math.exp(-dt_s / pr.attitude_tau_s)
+        k = self._attitude_k
         self._roll_rad += k * (roll_sp - self._roll_rad)
         self._pitch_rad += k * (pitch_sp - self._pitch_rad)
-        yaw_rate_max = math.radians(pr.yaw_rate_max_dps)
+        yaw_rate_max = self._yaw_rate_max_radps
         if control.yaw_rate_sp_radps is not None:
             yaw_rate = _clamp(control.yaw_rate_sp_radps, -yaw_rate_max, yaw_rate_max)
         elif control.yaw_sp_rad is not None:
@@ -368,18 +401,23 @@ class Dynamics:
         cr, sr = math.cos(self._roll_rad), math.sin(self._roll_rad)
         cp, sp = math.cos(self._pitch_rad), math.sin(self._pitch_rad)
         cy, sy = math.cos(self._yaw_rad), math.sin(self._yaw_rad)
-        zb = (cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr)
+        zb_n, zb_e, zb_d = cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr
         c = pr.drag_per_s
+        v, p = self._v, self._p
         a = [
-            -thrust * zb[0] - c * (self._v[0] - wind[0]),
-            -thrust * zb[1] - c * (self._v[1] - wind[1]),
-            -thrust * zb[2] + G_MPS2 - c * (self._v[2] - wind[2]),
+            -thrust * zb_n - c * (v[0] - wind[0]),
+            -thrust * zb_e - c * (v[1] - wind[1]),
+            -thrust * zb_d + G_MPS2 - c * (v[2] - wind[2]),
         ]
         if self._on_ground and a[2] >= 0.0:
             a = [0.0, 0.0, 0.0]  # resting on the ground: friction holds it
-        for i in range(3):
-            self._v[i] += a[i] * dt_s
-            self._p[i] += self._v[i] * dt_s
+        # v ← v + a dt,  p ← p + v dt
+        v[0] += a[0] * dt_s
+        v[1] += a[1] * dt_s
+        v[2] += a[2] * dt_s
+        p[0] += v[0] * dt_s
+        p[1] += v[1] * dt_s
+        p[2] += v[2] * dt_s
         if self._p[2] >= self.ground_down_m:
             self._p[2] = self.ground_down_m
             if self._v[2] >= 0.0:
@@ -395,3 +433,4 @@ class Dynamics:
             wrap_pi(self._yaw_rad - yaw0) / dt_s,
         )
         self.battery.step(dt_s, thrust, control.motors_on, armed)
+        self._moved()

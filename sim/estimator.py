@@ -70,13 +70,17 @@ ESTIMATORS: dict[str, EstimatorErrorParams] = {"perfect": PERFECT, "gnss": GNSS,
 
 class _GaussMarkov:
     def __init__(self, sigma: float, tau_s: float, rng: random.Random) -> None:
-        self.sigma, self.tau_s, self._rng = sigma, tau_s, rng
+        self.sigma, self.tau_s, self._gauss = sigma, tau_s, rng.gauss
         self.x = rng.gauss(0.0, sigma) if sigma > 0.0 else 0.0
+        self._dt_s, self._a, self._b = math.nan, 0.0, 0.0  # a = e^{−dt/τ} and σ·√(1 − a²) for the last dt
 
     def step(self, dt_s: float) -> float:
         if self.sigma > 0.0:
-            a = math.exp(-dt_s / self.tau_s)
-            self.x = self.x * a + self.sigma * math.sqrt(1.0 - a * a) * self._rng.gauss(0.0, 1.0)
+            if dt_s != self._dt_s:
+                a = math.exp(-dt_s / self.tau_s)
+                self._dt_s, self._a, self._b = dt_s, a, self.sigma * math.sqrt(1.0 - a * a)
+            # x ← x·a + σ·√(1 − a²)·N(0, 1)
+            self.x = self.x * self._a + self._b * self._gauss(0.0, 1.0)
         return self.x
 
 
@@ -92,6 +96,7 @@ class EstimatorError:
         tr = params.drift_rate_tau_s
         self._rate = [_GaussMarkov(rh, tr, rng), _GaussMarkov(rh, tr, rng), _GaussMarkov(rv, tr, rng)]
         self.pos_err_m = [0.0, 0.0, 0.0]
+        self._axes = tuple(zip(self._vel, self._rate, strict=True))  # stepped in this order: the draws' order
 
     @property
     def vel_err_mps(self) -> Vec3:
@@ -100,10 +105,11 @@ class EstimatorError:
 
     def step(self, dt_s: float) -> None:
         leak = self.params.drift_leak_tau_s
-        for i in range(3):
-            self._vel[i].step(dt_s)
-            rate = self._rate[i].step(dt_s)
-            self.pos_err_m[i] += (rate - self.pos_err_m[i] / leak) * dt_s
+        e_p = self.pos_err_m
+        for i, (vel, rate) in enumerate(self._axes):
+            vel.step(dt_s)
+            # ė_p = ṙ − e_p / τ_leak
+            e_p[i] += (rate.step(dt_s) - e_p[i] / leak) * dt_s
 
     def apply(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> tuple[Vec3, Vec3]:
         e_p, e_v = self.pos_err_m, self.vel_err_mps

@@ -12,6 +12,16 @@ the sea state's Hs and Tp.
 
 from __future__ import annotations
 
+import os
+
+# The evaluation's linear algebra is on tiny matrices (the filters' 12×12): a second OpenBLAS thread buys nothing
+# and, with a process per core (``--jobs``), its spinning threads take the cores from the runs — milliseconds per
+# call on a busy machine. OpenBLAS reads this when numpy loads it: set before anything imports numpy (the job
+# processes inherit it). Only as the program: importing this module changes nobody's environment.
+if __name__ == "__main__":
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+# isort: split
 import itertools
 import json
 import sys

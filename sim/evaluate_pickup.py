@@ -51,7 +51,7 @@ from sim.wind import WindConfig
 
 EVAL_GEOFENCE_M = 400.0  # the evaluation's geofence radius around home (``_fly``)
 RUN_LIMIT_S = 1500.0  # mission time; the table's own timeouts end every run well before
-NOOP_CYCLES = 2  # the looptime loop's setting (as the tests and sim.faults)
+NOOP_CYCLES = 0  # no no-op cycles before the clock jumps: no threads or I/O in a run whose callbacks could land
 OUTCOMES = ("picked_up", "failed", "aborted", "pilot", "timeout", "error")
 TRACE_PERIOD_S = 0.2  # the truth written for a run's report (--run-reports)
 

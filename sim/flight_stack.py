@@ -318,7 +318,7 @@ class FlightStack:
                 self._takeoff_done()
         elif behaviour is Behaviour.OFFBOARD and (self.mode is Mode.OFFBOARD or self._guided_sub == "setpoint"):
             sp = self._sp or ResolvedSetpoint.zero()
-            v = sp.velocity(self.dyn.estimate.pos_ned_m, pr.xy_pos_p, pr.z_pos_p, self.tuning.cruise_mps())
+            v = sp.velocity(self.dyn.estimate_pos_vel()[0], pr.xy_pos_p, pr.z_pos_p, self.tuning.cruise_mps())
             shaped = sp.is_velocity
             if sp.yaw_rad is not None or sp.yaw_rate_radps is not None:
                 yaw_sp, yaw_rate_sp = sp.yaw_rad, sp.yaw_rate_radps
@@ -358,7 +358,7 @@ class FlightStack:
         return b is Behaviour.LAND or (b is Behaviour.RTL and self.nav.rtl_phase == "land")
 
     def _update_landed_state(self, t_s: float) -> None:
-        on_ground = self.dyn.state.on_ground
+        on_ground = self.dyn.on_ground
         update = self.land_detector.update(t_s, self.landed_state, on_ground, self._taking_off(), self._landing_phase())
         if update.detected == "takeoff":
             self._statustext("Takeoff detected", SEVERITY_INFO)

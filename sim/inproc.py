@@ -100,6 +100,9 @@ class InProcessVehicle:
         self._watchdogs: list[SetpointWatchdog] = []
         self._listeners: list[SampleListener] = []
         self._next_sample_s = 0.0
+        # the last snapshot and what it was built from: read far more often than the physics steps
+        self._snapshot = TelemetrySnapshot()
+        self._snapshot_of: tuple[Any, ...] = ()
         boot = self.stack.mode
         self._record("mode", 0.0, mode=boot.flight_mode.value, autopilot_mode=boot.label, reason="boot")
 
@@ -133,8 +136,13 @@ class InProcessVehicle:
         if not st.started:
             return TelemetrySnapshot()
         t_s = st.t_s
-        s = st.dyn.estimate
-        return TelemetrySnapshot(
+        s = st.dyn.estimate  # a new object after every physics step (with the battery's new state)
+        of = self._snapshot_of
+        if of and of[0] == t_s and of[1] is s and of[2] is st.mode and of[3] is st.armed and of[4] is st.landed_state:
+            if of[5] is st.home_ned_m:
+                return self._snapshot  # nothing moved since it was built
+        self._snapshot_of = (t_s, s, st.mode, st.armed, st.landed_state, st.home_ned_m)
+        self._snapshot = TelemetrySnapshot(
             pos_vel=PositionVelocityNed(t_s, s.pos_ned_m, s.vel_ned_mps),
             attitude=AttitudeEuler(t_s, s.roll_rad, s.pitch_rad, s.yaw_rad),
             flight_mode=Stamped(t_s, st.flight_mode),
@@ -144,6 +152,7 @@ class InProcessVehicle:
             heartbeat_t_s=t_s,
             battery=Stamped(t_s, BatteryLevel(st.dyn.battery.voltage_v, st.dyn.battery.remaining_frac)),
         )
+        return self._snapshot
 
     def add_sample_listener(self, listener: SampleListener) -> None:
         """Position and attitude samples of the estimate at ``TELEMETRY_PERIOD_S`` (as the MAVLink streams)."""

@@ -35,6 +35,9 @@ class LandedUpdate:
     detected: Literal["takeoff", "landing"] | None = None
 
 
+_NOTHING_DETECTED = {s: LandedUpdate(s) for s in LandedState}  # the answer of almost every update, built once
+
+
 @dataclass(frozen=True, slots=True)
 class AutoDisarm:
     """A decision to disarm: the STATUSTEXT to send and the reason the ``armed`` event carries."""
@@ -62,7 +65,7 @@ class LandDetector:
         """The landed state at ``t_s``, given ground contact and whether a takeoff or landing is flown."""
         if landed_state is LandedState.ON_GROUND:
             if on_ground:
-                return LandedUpdate(landed_state)
+                return _NOTHING_DETECTED[landed_state]
             self.flew_since_arm = True
             self.contact_since_s = None
             detected: Literal["takeoff"] | None = "takeoff"
@@ -72,13 +75,12 @@ class LandDetector:
             if t_s - self.contact_since_s >= LAND_DETECT_S:
                 self.ground_since_s = t_s
                 return LandedUpdate(LandedState.ON_GROUND, "landing")
-            return LandedUpdate(landed_state)
+            return _NOTHING_DETECTED[landed_state]
         else:
             self.contact_since_s = None
             detected = None
-        if taking_off:
-            return LandedUpdate(LandedState.TAKING_OFF, detected)
-        return LandedUpdate(LandedState.LANDING if landing_phase else LandedState.IN_AIR, detected)
+        state = LandedState.TAKING_OFF if taking_off else LandedState.LANDING if landing_phase else LandedState.IN_AIR
+        return _NOTHING_DETECTED[state] if detected is None else LandedUpdate(state, detected)
 
     def auto_disarm(
         self, t_s: float, landed_state: LandedState, disarm_at_touchdown: bool, tuning: Tuning

@@ -63,22 +63,21 @@ class Navigator:
     def takeoff_velocity(self) -> tuple[Vec3, bool]:
         """Velocity towards the takeoff target, and whether it has been reached."""
         assert self.takeoff_target_ned_m is not None
-        target, p = self.takeoff_target_ned_m, self.dyn.estimate.pos_ned_m
+        target, p = self.takeoff_target_ned_m, self.dyn.estimate_pos_vel()[0]
         v = velocity_from_position(target, p, self.dyn.params, max_up_mps=self.tuning.takeoff_speed_mps())
         return v, p[2] - target[2] <= TAKEOFF_DONE_M
 
     def hold_velocity(self) -> Vec3:
-        s = self.dyn.estimate
-        p = s.pos_ned_m
+        p, v = self.dyn.estimate_pos_vel()
         if self.braking:
-            if math.hypot(s.vel_ned_mps[0], s.vel_ned_mps[1]) > BRAKED_MPS:
+            if math.hypot(v[0], v[1]) > BRAKED_MPS:
                 return (0.0, 0.0, 0.0)
             self.braking = False
             self.hold_pos_ned_m = (p[0], p[1], self.hold_pos_ned_m[2])
         return velocity_from_position(self.hold_pos_ned_m, p, self.dyn.params, self.tuning.cruise_mps())
 
     def landing_velocity(self) -> Vec3:
-        p = self.dyn.estimate.pos_ned_m
+        p = self.dyn.estimate_pos_vel()[0]
         target = (self._land_xy_m[0], self._land_xy_m[1], p[2])
         v = velocity_from_position(target, p, self.dyn.params, self.tuning.cruise_mps())
         return (v[0], v[1], self.tuning.land_speed_mps(self.dyn.ground_down_m - p[2]))

@@ -134,7 +134,7 @@ class PickupWorld:
             o = self.object.state(t_s)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
-            self.vehicle.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, p)  # at the frame rate
+            self.vehicle.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, p, sea_down)  # at the frame rate
             # the radar measures from its antenna, off the body origin by the lever arm
             r_ned_body = euler_zyx_to_matrix(truth.roll_rad, truth.pitch_rad, truth.yaw_rad)
             ant = np.asarray(p) + r_ned_body @ self.radar_arm_frd_m
@@ -219,12 +219,14 @@ CONTACT_M = 0.05  # the vehicle this close to the water under it has touched dow
 CONTACT_CLEAR_M = 0.3  # … and a next touchdown needs it this high first
 
 
-def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any) -> float:
+def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any, sea_down_m: float | None = None) -> float:
     """Where the vehicle meets the water under it (down): the sea surface, crests and troughs included — a vehicle
     come down onto the sea sits on the wave, not on a flat plane through its mean. Within ``DECK_RADIUS_M`` of
-    home: the deck, at home level."""
+    home: the deck, at home level. ``sea_down_m``: the sea surface's down there, when the caller has it already."""
     if math.hypot(float(pos_ned_m[0]), float(pos_ned_m[1])) <= DECK_RADIUS_M:
         return 0.0
+    if sea_down_m is not None:
+        return sea_down_m
     return -float(sea.surface_elevation_m(t_s, pos_ned_m[0], pos_ned_m[1]))
 
 

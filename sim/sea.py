@@ -151,6 +151,13 @@ class SeaWorld:
         self._current_b_mps = c.current_variation_mps / math.sqrt(_CURRENT_TERMS)
         self._current_omega_radps = TWO_PI / (c.current_period_s * rng.uniform(0.6, 1.6, _CURRENT_TERMS))
         self._current_phase_rad = rng.uniform(0.0, TWO_PI, (_CURRENT_TERMS, 2))
+        # the constant factors of _current_ne's sums (terms × axis)
+        cos_phase, sin_phase = np.cos(self._current_phase_rad), np.sin(self._current_phase_rad)
+        omega = self._current_omega_radps[:, None]
+        self._current_cos_sin_phase = (cos_phase, sin_phase)
+        self._current_phase_over_omega = (cos_phase / omega, sin_phase / omega, np.sum(sin_phase / omega, axis=0))
+        self._current_phase_times_omega = (cos_phase * omega, sin_phase * omega)
+        self._trig_one = PhaseTrig(self._phase_matrix, 1)  # for one place and time (work arrays reused)
         from_rad = math.radians(c.wind_from_deg)
         self.windage_drift_ned_mps: Vec3 = (
             -c.windage * c.wind_mps * math.cos(from_rad),
@@ -180,7 +187,7 @@ class SeaWorld:
         """η, metres positive up, at (t, north, east); the arguments broadcast, scalars give a float."""
         rows, shape = self._phase_rows(t_s, north_m, east_m)
         eta = np.empty(len(rows))
-        cos_sin = PhaseTrig(self._phase_matrix, len(rows))
+        cos_sin = self._phase_trig(len(rows))
         for sl in row_blocks(len(rows)):
             # η = Σ a cos θ
             cos, _ = cos_sin(rows[sl])
@@ -191,7 +198,7 @@ class SeaWorld:
         """Orbital velocity of the water at the surface, NED m/s, shape ``broadcast(...) + (3,)``."""
         rows, shape = self._phase_rows(t_s, north_m, east_m)
         v = np.empty((len(rows), 3))
-        cos_sin = PhaseTrig(self._phase_matrix, len(rows))
+        cos_sin = self._phase_trig(len(rows))
         for sl in row_blocks(len(rows)):
             cos, sin = cos_sin(rows[sl])
             # u = Σ a ω cos θ k̂;   w_d = −∂η/∂t = Σ a ω sin θ
@@ -205,25 +212,30 @@ class SeaWorld:
         _, vel_ne, _ = self._current_ne(t.ravel())
         return np.concatenate([vel_ne, np.zeros((t.size, 1))], axis=1).reshape((*t.shape, 3))
 
+    def _phase_trig(self, n_rows: int) -> PhaseTrig:
+        return self._trig_one if n_rows == 1 else PhaseTrig(self._phase_matrix, n_rows)
+
     def _phase_rows(self, t_s: ArrayLike, north_m: ArrayLike, east_m: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
+        if isinstance(t_s, float) and isinstance(north_m, float) and isinstance(east_m, float):  # one point
+            return np.array([[t_s, north_m, east_m, 1.0]]), ()
         t, n, e = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (t_s, north_m, east_m)))
         return np.stack([t.ravel(), n.ravel(), e.ravel(), np.ones(t.size)], axis=1), t.shape
 
     def _current_ne(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """∫₀ᵗ U dt, U(t) and dU/dt for times ``t`` (N,), each (N, 2)."""
         omega, b, u0 = self._current_omega_radps, self._current_b_mps, self._current_steady_ne_mps
-        cos_phase, sin_phase = np.cos(self._current_phase_rad), np.sin(self._current_phase_rad)  # terms × axis
+        cos_phase, sin_phase = self._current_cos_sin_phase  # terms × axis
+        cos_phase_over_omega, sin_phase_over_omega, sum_sin_phase_over_omega = self._current_phase_over_omega
+        cos_phase_omega, sin_phase_omega = self._current_phase_times_omega
         cos_wt, sin_wt = np.cos(np.outer(t, omega)), np.sin(np.outer(t, omega))  # N × terms
         # Σ cos(Ω t + φ) = cos Ωt · cos φ − sin Ωt · sin φ
         velocity = u0 + b * (cos_wt @ cos_phase - sin_wt @ sin_phase)
         # ∫₀ᵗ cos(Ω t + φ) dt = (sin(Ω t + φ) − sin φ) / Ω,   sin(Ω t + φ) = sin Ωt · cos φ + cos Ωt · sin φ
         integral = u0 * t[:, None] + b * (
-            sin_wt @ (cos_phase / omega[:, None])
-            + cos_wt @ (sin_phase / omega[:, None])
-            - np.sum(sin_phase / omega[:, None], axis=0)
+            sin_wt @ cos_phase_over_omega + cos_wt @ sin_phase_over_omega - sum_sin_phase_over_omega
         )
         # d/dt cos(Ω t + φ) = −Ω sin(Ω t + φ)
-        acceleration = -b * (sin_wt @ (cos_phase * omega[:, None]) + cos_wt @ (sin_phase * omega[:, None]))
+        acceleration = -b * (sin_wt @ cos_phase_omega + cos_wt @ sin_phase_omega)
         return integral, velocity, acceleration
 
 
@@ -293,7 +305,7 @@ class FloatingObject:
 
         pos, vel, acc = np.zeros((len(t), 3)), np.zeros((len(t), 3)), np.zeros((len(t), 3))
         pos[:, :2], vel[:, :2], acc[:, :2] = mean_ne, mean_vel_ne, mean_acc_ne
-        cos_sin = PhaseTrig(sea._phase_matrix, len(t))
+        cos_sin = sea._phase_trig(len(t))
         for sl in row_blocks(len(t)):
             # θ = ω t − k·x̄ + φ
             cos, sin = cos_sin(np.column_stack([t[sl], mean_ne[sl], np.ones(len(t[sl]))]))

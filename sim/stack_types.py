@@ -47,7 +47,8 @@ class ResolvedSetpoint:
     @property
     def is_velocity(self) -> bool:
         """True when no axis carries a position (a pure velocity setpoint)."""
-        return all(p is None for p in self.pos_ned_m)
+        p = self.pos_ned_m
+        return p[0] is None and p[1] is None and p[2] is None
 
     def velocity(self, pos_ned_m: Vec3, k_xy: float, k_z: float, cruise_mps: float) -> Vec3:
         """v_sp = K (p_sp − p) + v_ff per axis; position-only horizontal motion capped at cruise."""

@@ -63,6 +63,13 @@ class Wind:
             sigma.gust_sigma_mps * float(self._rng.standard_normal()),
             sigma.vertical_sigma_mps * float(self._rng.standard_normal()),
         ]
+        self._axes = (
+            (sigma.gust_sigma_mps, sigma.gust_tau_s),
+            (sigma.gust_sigma_mps, sigma.gust_tau_s),
+            (sigma.vertical_sigma_mps, sigma.vertical_tau_s),
+        )
+        self._dt_s = math.nan  # the step the coefficients below are for
+        self._coefficients: list[tuple[float, float | None]] = []  # per axis (φ, σ √(1 − φ²))
 
     @classmethod
     def off(cls) -> Wind:
@@ -79,23 +86,25 @@ class Wind:
         """Advance the gusts by ``dt_s`` seconds and return the new air velocity (NED, m/s)."""
         if dt_s <= 0.0:
             return self.wind_ned_mps
-        c = self.config
         if self._next_draw >= len(self._draws):
             self._draws = self._rng.standard_normal((_BATCH, 3)).tolist()
             self._next_draw = 0
         w = self._draws[self._next_draw]
         self._next_draw += 1
-        for axis, (sigma_mps, tau_s) in enumerate(
-            (
-                (c.gust_sigma_mps, c.gust_tau_s),
-                (c.gust_sigma_mps, c.gust_tau_s),
-                (c.vertical_sigma_mps, c.vertical_tau_s),
-            )
-        ):
-            if sigma_mps <= 0.0:
-                self._gust_ned_mps[axis] = 0.0
-                continue
-            # φ = exp(−dt/τ); g ← φ g + σ √(1 − φ²) w
-            phi = math.exp(-dt_s / tau_s)
-            self._gust_ned_mps[axis] = phi * self._gust_ned_mps[axis] + sigma_mps * math.sqrt(1.0 - phi * phi) * w[axis]
-        return self.wind_ned_mps
+        if dt_s != self._dt_s:
+            # φ = exp(−dt/τ), and σ √(1 − φ²): the same for every step of this length
+            self._dt_s, self._coefficients = dt_s, [_ou_coefficients(s, tau, dt_s) for s, tau in self._axes]
+        g = self._gust_ned_mps
+        for axis, (phi, sigma_w) in enumerate(self._coefficients):
+            # g ← φ g + σ √(1 − φ²) w   (no gusts: g = 0)
+            g[axis] = phi * g[axis] + sigma_w * w[axis] if sigma_w is not None else 0.0
+        m = self._mean_ned_mps
+        return (m[0] + g[0], m[1] + g[1], m[2] + g[2])
+
+
+def _ou_coefficients(sigma_mps: float, tau_s: float, dt_s: float) -> tuple[float, float | None]:
+    """φ = exp(−dt/τ) and σ √(1 − φ²) for one axis (None: no gusts on it)."""
+    if sigma_mps <= 0.0:
+        return 0.0, None
+    phi = math.exp(-dt_s / tau_s)
+    return phi, sigma_mps * math.sqrt(1.0 - phi * phi)

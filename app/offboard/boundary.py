@@ -101,6 +101,7 @@ class VehicleBoundary:
         self.refused: dict[str, int] = {}
         self.yaw_rad = 0.0  # the last yaw sent
         self._good = TelemetrySnapshot()
+        self._clean: TelemetrySnapshot | None = None  # the vehicle's last snapshot, when it needed no mending
         self._leaving: asyncio.Task[None] | None = None
         self._last_offboard_command_s: float | None = None
         self.watchdog = SetpointWatchdog(params.watchdog_timeout_s, self._watchdog_fired)
@@ -111,6 +112,8 @@ class VehicleBoundary:
     def telemetry(self) -> TelemetrySnapshot:
         """The vehicle's snapshot with non-finite samples replaced by the last good ones (and counted)."""
         tel = self.vehicle.telemetry()
+        if tel is self._clean:
+            return self._good  # the very snapshot checked last time (an adapter may hand the same one out again)
         good = self._good
         pv, att, home = tel.pos_vel, tel.attitude, tel.home_ned_m
         if pv is not None and pv is not good.pos_vel and not _finite(*pv.pos_ned_m, *pv.vel_ned_mps, pv.t_s):
@@ -121,7 +124,9 @@ class VehicleBoundary:
             att = good.attitude
         if home is not None and not _finite(*home):
             home = good.home_ned_m
-        self._good = replace(tel, pos_vel=pv, attitude=att, home_ned_m=home)
+        clean = pv is tel.pos_vel and att is tel.attitude and home is tel.home_ned_m
+        self._clean = tel if clean else None
+        self._good = tel if clean else replace(tel, pos_vel=pv, attitude=att, home_ned_m=home)
         return self._good
 
     def _reject(self, stream: str, t_s: float) -> None:
