@@ -207,12 +207,12 @@ class TelemetryEncoder:
         )
 
     def attitude(self) -> Message:
-        s = self.stack.dyn.state
+        s = self.stack.dyn.estimate  # the reported attitude, with the estimator's tilt error
         r = s.rates_radps
         return self._mav.attitude_encode(self._ms(), s.roll_rad, s.pitch_rad, s.yaw_rad, r[0], r[1], r[2])
 
     def attitude_quaternion(self) -> Message:
-        s = self.stack.dyn.state
+        s = self.stack.dyn.estimate  # the reported attitude, with the estimator's tilt error
         q, r = quat_from_euler_zyx(s.roll_rad, s.pitch_rad, s.yaw_rad), s.rates_radps
         return self._mav.attitude_quaternion_encode(self._ms(), *q, r[0], r[1], r[2])
 

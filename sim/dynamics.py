@@ -222,7 +222,8 @@ class Dynamics:
         dropped while on the ground, where EKF2/EKF3 fuse zero velocity)."""
         est = self._estimate
         if est is None:
-            est = self._estimate = self._state_at(*self.estimate_pos_vel())
+            tilt_err = (0.0, 0.0) if self.estimator is None else self.estimator.tilt_err_rad
+            est = self._estimate = self._state_at(*self.estimate_pos_vel(), tilt_err)
         return est
 
     def estimate_pos_vel(self) -> tuple[Vec3, Vec3]:
@@ -243,16 +244,19 @@ class Dynamics:
         """The state (or the estimator's error, or the wind) changed: the estimate is built anew when read."""
         self._estimate_pv = self._estimate = None
 
-    def _state_at(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> VehicleState:
-        """The vehicle's state with this position and velocity (the truth's, or the estimate's: built directly,
-        not as a replace() of ``state`` — ``estimate`` is the hottest property of a run)."""
+    def _state_at(
+        self, pos_ned_m: Vec3, vel_ned_mps: Vec3, tilt_err_rad: tuple[float, float] = (0.0, 0.0)
+    ) -> VehicleState:
+        """The vehicle's state with this position and velocity (the truth's, or the estimate's, with its roll and
+        pitch error: built directly, not as a replace() of ``state`` — ``estimate`` is the hottest property of a
+        run)."""
         a = self._a
         return VehicleState(
             pos_ned_m=pos_ned_m,
             vel_ned_mps=vel_ned_mps,
             acc_ned_mps2=(a[0], a[1], a[2]),
-            roll_rad=self._roll_rad,
-            pitch_rad=self._pitch_rad,
+            roll_rad=self._roll_rad + tilt_err_rad[0],
+            pitch_rad=self._pitch_rad + tilt_err_rad[1],
             yaw_rad=self._yaw_rad,
             rates_radps=self._rates,
             on_ground=self._on_ground,

@@ -9,21 +9,27 @@ not even consistent with itself: d(position)/dt differs from the reported veloci
     ṙ     = Gauss–Markov(σ_r, τ_r)                       drift rate, m/s
     ė_p   = ṙ − e_p / τ_leak                             position drift (bounded by the leak), m
     p̂     = p + e_p
+    φ̂, θ̂  = φ + Gauss–Markov(σ_tilt, τ_tilt), θ + Gauss–Markov(σ_tilt, τ_tilt)      roll and pitch, rad
 
 Gauss–Markov: x ← x·e^{−dt/τ} + σ·√(1 − e^{−2dt/τ})·N(0, 1), stationary at σ (it starts drawn from
 that distribution). ``sim.dynamics`` runs its velocity controller on v̂ (and ArduCopter's position target on
-p̂), so the bias becomes a real drift of the vehicle that only the reported position reveals.
+p̂), so the bias becomes a real drift of the vehicle that only the reported position reveals. The tilt error is
+only reported (the camera images with the true attitude; the app triangulates with the reported one); it has its
+own random stream, so the position and velocity errors of a seed are those they were before it existed.
 
 Presets (``ESTIMATORS``):
 - ``perfect``: no error (unit tests of the dynamics and the old behaviour).
 - ``gnss`` (the default): a GNSS-aided EKF on a real airframe with a good receiver (u-blox M8/M9 class:
   speed accuracy ~0.05 m/s, horizontal position wander of a few decimetres over minutes, baro drift of
   a few decimetres): σ_v 0.05 / 0.03 m/s (h / v) with τ_v 3 s, a 0.02 m/s downward bias, position drift
-  rate σ_r 0.01 m/s with τ_r 10 s and a 60 s leak (σ_p = σ_r·τ_leak·√(τ_r/(τ_r + τ_leak)) ≈ 0.23 m).
+  rate σ_r 0.01 m/s with τ_r 10 s and a 60 s leak (σ_p = σ_r·τ_leak·√(τ_r/(τ_r + τ_leak)) ≈ 0.23 m); a roll
+  and pitch error of σ 0.3° with τ 10 s (EKF2/EKF3 tilt accuracy with a good IMU, a few tenths of a degree,
+  slowly varying: the figure is this project's choice, not a measurement).
 - ``px4-sih``: what PX4 SIH's EKF2 reported against SIH's truth in the recording
   (``shared/reference/autopilot-response``): velocity error 0.22 / 0.27 m/s RMS north / east with a
   correlation time of 3.6–3.9 s, vertical 0.135 m/s with 2.9 s and a +0.09 m/s (down) bias (README:
-  +0.08…+0.11; 0.11 over the whole step flight), position error within ±0.65 m of its start.
+  +0.08…+0.11; 0.11 over the whole step flight), position error within ±0.65 m of its start; the recordings do
+  not give the attitude's error: the same tilt error as ``gnss``.
 """
 
 from __future__ import annotations
@@ -43,12 +49,15 @@ class EstimatorErrorParams:
     drift_rate_sigma_mps: tuple[float, float] = (0.0, 0.0)
     drift_rate_tau_s: float = 10.0
     drift_leak_tau_s: float = 60.0
+    tilt_sigma_rad: float = 0.0  # roll and pitch error (each), rad
+    tilt_tau_s: float = 10.0
 
     def is_perfect(self) -> bool:
         return (
             self.vel_sigma_mps == (0.0, 0.0)
             and self.vel_bias_ned_mps == (0.0, 0.0, 0.0)
             and self.drift_rate_sigma_mps == (0.0, 0.0)
+            and self.tilt_sigma_rad == 0.0
         )
 
 
@@ -58,12 +67,14 @@ GNSS = EstimatorErrorParams(
     vel_tau_s=(3.0, 3.0),
     vel_bias_ned_mps=(0.0, 0.0, 0.02),
     drift_rate_sigma_mps=(0.01, 0.01),
+    tilt_sigma_rad=math.radians(0.3),
 )
 PX4_SIH = EstimatorErrorParams(
     vel_sigma_mps=(0.24, 0.135),
     vel_tau_s=(3.7, 2.9),
     vel_bias_ned_mps=(0.0, 0.0, 0.09),
     drift_rate_sigma_mps=(0.03, 0.03),
+    tilt_sigma_rad=math.radians(0.3),
 )
 ESTIMATORS: dict[str, EstimatorErrorParams] = {"perfect": PERFECT, "gnss": GNSS, "px4-sih": PX4_SIH}
 
@@ -97,11 +108,21 @@ class EstimatorError:
         self._rate = [_GaussMarkov(rh, tr, rng), _GaussMarkov(rh, tr, rng), _GaussMarkov(rv, tr, rng)]
         self.pos_err_m = [0.0, 0.0, 0.0]
         self._axes = tuple(zip(self._vel, self._rate, strict=True))  # stepped in this order: the draws' order
+        tilt_rng = random.Random(f"estimator-tilt-{seed}")  # its own stream: the others' draws stay as they were
+        self._tilt = (
+            _GaussMarkov(params.tilt_sigma_rad, params.tilt_tau_s, tilt_rng),
+            _GaussMarkov(params.tilt_sigma_rad, params.tilt_tau_s, tilt_rng),
+        )
 
     @property
     def vel_err_mps(self) -> Vec3:
         b = self.params.vel_bias_ned_mps
         return (self._vel[0].x + b[0], self._vel[1].x + b[1], self._vel[2].x + b[2])
+
+    @property
+    def tilt_err_rad(self) -> tuple[float, float]:
+        """The reported roll and pitch minus the true ones, rad."""
+        return self._tilt[0].x, self._tilt[1].x
 
     def step(self, dt_s: float) -> None:
         leak = self.params.drift_leak_tau_s
@@ -110,6 +131,8 @@ class EstimatorError:
             vel.step(dt_s)
             # ė_p = ṙ − e_p / τ_leak
             e_p[i] += (rate.step(dt_s) - e_p[i] / leak) * dt_s
+        for tilt in self._tilt:
+            tilt.step(dt_s)
 
     def apply(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> tuple[Vec3, Vec3]:
         e_p, e_v = self.pos_err_m, self.vel_err_mps

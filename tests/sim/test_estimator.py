@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -76,3 +77,30 @@ def test_on_the_ground_the_velocity_estimate_is_zero():
     for _ in range(100):
         dyn.step(0.01, ControlInput(motors_on=False), armed=False)
     assert dyn.state.on_ground and dyn.estimate.vel_ned_mps == (0.0, 0.0, 0.0)
+
+
+def test_the_reported_roll_and_pitch_carry_a_slow_tilt_error_and_the_other_errors_are_unchanged():
+    """The tilt error (σ 0.3°, τ 10 s) is reported, not flown: the truth's attitude and the position and velocity
+    errors of a seed are those of the same estimator without it (its own random stream)."""
+    with_tilt = Dynamics(airframes.PX4, pos_ned_m=(0.0, 0.0, -10.0), estimator=EstimatorError(estimator.GNSS, 5))
+    no_tilt = dataclasses.replace(estimator.GNSS, tilt_sigma_rad=0.0)
+    without = Dynamics(airframes.PX4, pos_ned_m=(0.0, 0.0, -10.0), estimator=EstimatorError(no_tilt, 5))
+    errs, slow = [], []
+    for dyn in (with_tilt, without):
+        dyn.start_airborne((0.0, 0.0, 0.0))
+    for i in range(60_000):  # 600 s
+        for dyn in (with_tilt, without):
+            dyn.step(0.01, ControlInput((0.0, 0.0, 0.0)))
+        a, b = with_tilt.estimate, without.estimate
+        assert a.pos_ned_m == b.pos_ned_m and a.vel_ned_mps == b.vel_ned_mps
+        assert with_tilt.state.roll_rad == without.state.roll_rad == b.roll_rad
+        errs.append((a.roll_rad - with_tilt.state.roll_rad, a.pitch_rad - with_tilt.state.pitch_rad))
+        if i % 100 == 0:
+            slow.append(errs[-1][0])
+    e = np.degrees(np.array(errs))
+    rms = float(np.sqrt(np.mean(e**2)))
+    step = float(np.sqrt(np.mean(np.diff(np.array(slow)) ** 2)))  # change over 1 s, rad
+    print(f"tilt error {rms:.3f}° RMS, max {np.abs(e).max():.2f}°, change over 1 s {math.degrees(step):.3f}° RMS")
+    assert 0.15 <= rms <= 0.45
+    assert math.degrees(step) < 0.2  # slowly varying (τ 10 s: √(2(1 − e^−0.1)) · 0.3° ≈ 0.13°)
+    assert estimator.PERFECT.is_perfect() and not estimator.GNSS.is_perfect()
