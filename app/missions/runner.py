@@ -332,6 +332,10 @@ class MissionRunner:
                 # run 51: SEARCH entered mid-way through TRACK's leave for a takeoff from the water found offboard
                 # still ours, the HOLD came after, and the vehicle sat on the water for 235 s)
                 await asyncio.wait([unfinished])
+            # … and so does a leave begun by an entry further back: that entry's successor, cancelled in turn while
+            # it waited, no longer holds this one up (HOLD in DESCEND, resume → TRACK, at once TRACK → DESCEND:
+            # DESCEND found offboard still ours and the HOLD went out after it)
+            await self.boundary.leave_settled()
             if spec.control != "offboard" and not spec.manual and not spec.abort:
                 await self.boundary.leave_offboard(f"{previous} → {name}")
             entry = spec.entry

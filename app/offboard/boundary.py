@@ -321,6 +321,13 @@ class VehicleBoundary:
             self._leaving = asyncio.get_running_loop().create_task(self._leave(reason), name="offboard.leave")
         await shielded(self._leaving, self.params.exit_timeout_s)
 
+    async def leave_settled(self) -> None:
+        """Wait (bounded) for a leave_offboard already under way to send its HOLD: until then ``owns_offboard`` still
+        says True of an offboard that is about to end."""
+        leaving = self._leaving
+        if leaving is not None and not leaving.done():
+            await asyncio.wait({leaving}, timeout=self.params.exit_timeout_s)
+
     def _disowned_disarmed(self, reason: str) -> None:
         """The vehicle is disarmed (a kill switch, an auto-disarm): nothing to stop and no mode to change — a mode
         command now would only override whoever disarmed it. MAVSDK's re-sent setpoint becomes zero velocity,

@@ -271,10 +271,13 @@ async def test_a_missed_object_drifting_out_of_view_during_the_takeoff_from_the_
 @pytest.mark.looptime(noop_cycles=2)
 @pytest.mark.parametrize("profile", ["px4", "ardupilot"])
 async def test_a_resume_that_comes_while_hold_is_still_leaving_offboard_takes_offboard_again(profile):
-    """A ground station's hold in TRACK leaves offboard (zero velocity for 0.5 s, then HOLD); a resume 0.2 s later
-    enters TRACK while that is still going on. TRACK must take offboard again once the HOLD has gone out: checked
-    from the vehicle's side, it flies offboard again and follows the object to the pickup (eval run 51: the same
-    race after a takeoff from the water left the vehicle in BRAKE on the sea for 235 s)."""
+    """A ground station's hold 1 s into TRACK leaves offboard (zero velocity for 0.5 s, then HOLD); a resume 0.2 s
+    later enters TRACK while that is still going on. The state that resumes must take offboard again once the HOLD
+    has gone out: checked from the vehicle's side, it flies offboard again and follows the object to the pickup
+    (eval run 51: the same race after a takeoff from the water left the vehicle in BRAKE on the sea for 235 s).
+    On PX4 the filter has converged by then: the hold comes in DESCEND, and the resumed TRACK goes on to DESCEND at
+    once, cancelling TRACK's entry while it still waited for HOLD's — DESCEND must wait for the HOLD too (it did not
+    before ``VehicleBoundary.leave_settled``: the vehicle stayed in HOLD)."""
     settings = load_settings()
     scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
     calibrated = SIM_PROFILES[profile]
