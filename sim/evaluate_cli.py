@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from app.cli import OneLineParser, number, run_cli
-from sim.evaluate_pickup import Job, Progress, run_jobs
+from sim.evaluate_pickup import Job, Progress, RunInputs, run_jobs
 from sim.evaluate_report import summarise, table, write_index_html, write_report_png
 from sim.pickup_scenarios import CONFIGS, sample_scenarios
 
@@ -69,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     out: Path = args.out if args.out is not None else Path("runs") / f"eval-{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     scenarios = sample_scenarios(args.seed, args.runs, args.sea_state)
+    inputs = RunInputs.load()  # once: editing the settings or the mission while it runs changes no run
     jobs: list[Job] = []
     for config in args.compare:
         for i, sc in enumerate(scenarios):
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
                 d = out / "runs" / config / f"{i:04d}"
                 d.mkdir(parents=True, exist_ok=True)
                 run_dir = str(d.resolve())
-            jobs.append((sc, config, i, run_dir))
+            jobs.append((sc, config, i, run_dir, inputs))
     wall0 = time.perf_counter()
     progress = None if args.no_progress else Progress(len(jobs))
     # each result is on disk as soon as it is in (completion order): an evaluation that dies keeps what it flew

@@ -27,6 +27,7 @@ import json
 import sys
 import time
 from collections.abc import Callable, Coroutine, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,8 +38,8 @@ from app.clock import LoopClock
 from app.eventlog import EventLog
 from app.flight import fly_mission
 from app.missions.pickup_feeds import PickupFeeds
-from app.missions.table import load_mission
-from app.settings import load_settings
+from app.missions.table import MissionTable, load_mission
+from app.settings import Settings, load_settings
 from sim.airframes import SIM_PROFILES
 from sim.estimator import ESTIMATORS
 from sim.faults import limits_of
@@ -56,13 +57,30 @@ OUTCOMES = ("picked_up", "failed", "aborted", "pilot", "timeout", "error")
 TRACE_PERIOD_S = 0.2  # the truth written for a run's report (--run-reports)
 
 
-def run_pickup(scenario: dict[str, Any], config: str, run: int = 0, run_dir: str | None = None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class RunInputs:
+    """What every run of an evaluation flies with besides its scenario: the settings and the mission table, read
+    once when the evaluation starts (a file edited while it runs must not change its later runs)."""
+
+    settings: Settings
+    table: MissionTable
+
+    @classmethod
+    def load(cls) -> RunInputs:
+        return cls(load_settings(), load_mission("pickup"))
+
+
+def run_pickup(
+    scenario: dict[str, Any], config: str, run: int = 0, run_dir: str | None = None, inputs: RunInputs | None = None
+) -> dict[str, Any]:
     """Fly one scenario with one configuration (``CONFIGS``) on a fresh looptime loop; see the module docstring.
-    ``run_dir``: also write the run's event log, the simulator's truth, ``report.png`` and ``run.mcap`` there."""
+    ``run_dir``: also write the run's event log, the simulator's truth, ``report.png`` and ``run.mcap`` there.
+    ``inputs``: the evaluation's settings and mission (read from their files now when not given)."""
     wall0 = time.perf_counter()
     loop = looptime.new_event_loop(noop_cycles=NOOP_CYCLES)
     try:
-        result = loop.run_until_complete(_fly(scenario, CONFIGS[config], Path(run_dir) if run_dir else None))
+        inputs = inputs if inputs is not None else RunInputs.load()
+        result = loop.run_until_complete(_fly(scenario, CONFIGS[config], inputs, Path(run_dir) if run_dir else None))
     except Exception as e:  # one broken run must not end the evaluation: it is counted as an error
         result = _empty("error", f"{type(e).__name__}: {one_line(e)}")
     finally:
@@ -89,8 +107,8 @@ def _empty(outcome: str, reason: str) -> dict[str, Any]:
     }  # fmt: skip
 
 
-async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dict[str, Any]:
-    settings = load_settings()
+async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: Path | None) -> dict[str, Any]:
+    settings = inputs.settings
     # the operator sets the fence around the operating area: the objects start 40-80 m out and drift up to 1 m/s
     # for minutes (the default 100 m fence stops the vehicle following most of the faster ones)
     envelope = settings.envelope.model_copy(update={"geofence_radius_m": EVAL_GEOFENCE_M})
@@ -117,7 +135,7 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, run_dir: Path | None) -> dic
         stamp_at_arrival=not cfg.latency_compensation,
     )
     world = EvalPickupWorld(vehicle, scenario, settings, sc["clutter"], cfg.full_frame_detection)
-    table = load_mission("pickup")
+    table = inputs.table
     params = {"target_filter": cfg.target_filter, "sea_state": sc["sea_state"], "search_start_ne_m": start_ne_m}
     if "drift_forecast_ne_mps" in sc:  # results.jsonl lines written before the forecast existed have none
         drift = sc["drift_forecast_ne_mps"]
@@ -223,7 +241,7 @@ def _write_grabs(run_dir: Path, grabs: list[dict[str, Any]], contacts: list[dict
 
 # ---- many runs -----------------------------------------------------------------------------------------------
 
-Job = tuple[dict[str, Any], str, int, str | None]  # (scenario, config, run index, run directory)
+Job = tuple[dict[str, Any], str, int, str | None, RunInputs | None]  # (scenario, config, run, run dir, inputs)
 
 
 def run_jobs(

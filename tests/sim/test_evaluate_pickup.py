@@ -112,12 +112,22 @@ def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
     assert doc["ratio_p95"] == (round(a / b, 3) if a is not None and b else None)
 
 
-def test_a_dask_cluster_gives_the_same_result_per_seed_as_local_processes(evaluation):
-    """The same run function submitted through dask.distributed's Client: identical lines but for the wall time."""
+def test_a_dask_cluster_gives_the_same_result_per_seed_as_local_processes(evaluation, monkeypatch):
+    """The same run function submitted through dask.distributed's Client: identical lines but for the wall time.
+    The job carries the evaluation's settings and mission, read once at its start: the run reads no file."""
     from dask.distributed import LocalCluster
 
+    import sim.evaluate_pickup as evaluate_pickup
+
     local = [r for r in evaluation["results"] if r["config"] == "seapick"][:1]  # one run: ~10 s under the GIL
-    jobs = [(r["scenario"], r["config"], r["run"], None) for r in local]
+    inputs = evaluate_pickup.RunInputs.load()
+
+    def no_file(*args: Any) -> None:
+        raise AssertionError("a run read a settings or mission file")
+
+    monkeypatch.setattr(evaluate_pickup, "load_settings", no_file)
+    monkeypatch.setattr(evaluate_pickup, "load_mission", no_file)
+    jobs = [(r["scenario"], r["config"], r["run"], None, inputs) for r in local]
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cluster:
         remote = run_jobs(jobs, 1, cluster.scheduler_address)
 
