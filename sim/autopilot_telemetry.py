@@ -184,13 +184,13 @@ class TelemetryEncoder:
         return self._mav.extended_sys_state_encode(MSG.MAV_VTOL_STATE_UNDEFINED, _LANDED[self.stack.landed_state])
 
     def local_position_ned(self) -> Message:
-        s = self.stack.dyn.estimate
+        s = self.stack.estimate()
         p, v = s.pos_ned_m, s.vel_ned_mps
         return self._mav.local_position_ned_encode(self._ms(), p[0], p[1], p[2], v[0], v[1], v[2])
 
     def global_position_int(self) -> Message:
         st = self.stack
-        s = st.dyn.estimate
+        s = st.estimate()
         geo = st.origin.offset(s.pos_ned_m)
         home_down_m = st.home_ned_m[2] if st.home_ned_m else 0.0
         v = s.vel_ned_mps
@@ -207,18 +207,18 @@ class TelemetryEncoder:
         )
 
     def attitude(self) -> Message:
-        s = self.stack.dyn.estimate  # the reported attitude, with the estimator's tilt error
+        s = self.stack.estimate()  # the reported attitude, with the estimator's tilt error
         r = s.rates_radps
         return self._mav.attitude_encode(self._ms(), s.roll_rad, s.pitch_rad, s.yaw_rad, r[0], r[1], r[2])
 
     def attitude_quaternion(self) -> Message:
-        s = self.stack.dyn.estimate  # the reported attitude, with the estimator's tilt error
+        s = self.stack.estimate()  # the reported attitude, with the estimator's tilt error
         q, r = quat_from_euler_zyx(s.roll_rad, s.pitch_rad, s.yaw_rad), s.rates_radps
         return self._mav.attitude_quaternion_encode(self._ms(), *q, r[0], r[1], r[2])
 
     def gps_raw_int(self) -> Message:
         st = self.stack
-        s = st.dyn.estimate
+        s = st.estimate()
         geo = st.origin.offset(s.pos_ned_m)
         fix = 3 if st.gps_ok else 1
         v = s.vel_ned_mps
@@ -288,7 +288,7 @@ class TelemetryEncoder:
 
     def vfr_hud(self) -> Message:
         st = self.stack
-        s = st.dyn.estimate
+        s = st.estimate()
         v, w = s.vel_ned_mps, s.wind_ned_mps
         air_mps = math.hypot(v[0] - w[0], v[1] - w[1])
         throttle = int(min(100.0, 50.0 * s.thrust_mps2 / 9.80665))

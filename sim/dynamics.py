@@ -109,6 +109,27 @@ class VehicleState:
     wind_ned_mps: Vec3
 
 
+def ahead(s: VehicleState, dt_s: float) -> VehicleState:
+    """``s`` carried ``dt_s`` on at its acceleration and angular rates (the vehicle between two physics ticks, as
+    seen at a time in between); on the ground, as it is."""
+    if dt_s <= 0.0 or s.on_ground:
+        return s
+    p, v, a, r = s.pos_ned_m, s.vel_ned_mps, s.acc_ned_mps2, s.rates_radps
+    h = 0.5 * dt_s * dt_s
+    return VehicleState(
+        pos_ned_m=(p[0] + v[0] * dt_s + a[0] * h, p[1] + v[1] * dt_s + a[1] * h, p[2] + v[2] * dt_s + a[2] * h),
+        vel_ned_mps=(v[0] + a[0] * dt_s, v[1] + a[1] * dt_s, v[2] + a[2] * dt_s),
+        acc_ned_mps2=a,
+        roll_rad=s.roll_rad + r[0] * dt_s,
+        pitch_rad=s.pitch_rad + r[1] * dt_s,
+        yaw_rad=wrap_pi(s.yaw_rad + r[2] * dt_s),
+        rates_radps=r,
+        on_ground=False,
+        thrust_mps2=s.thrust_mps2,
+        wind_ned_mps=s.wind_ned_mps,
+    )
+
+
 def wrap_pi(angle_rad: float) -> float:
     """Wrap to [−π, π)."""
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi

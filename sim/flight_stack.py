@@ -2,8 +2,8 @@
 
 Shared by the MAVLink endpoint (``sim.autopilot``, wall clock) and the in-process vehicle
 (``sim.inproc``, loop clock): every entry point takes ``t_s`` (seconds on the caller's clock) and
-``step(t_s)`` advances the physics to it in substeps of ``PHYSICS_DT_S``. Positions are local NED about
-the point where the vehicle booted (metres), velocities m/s, angles radians.
+``step(t_s)`` advances the physics to it in ticks of ``PHYSICS_DT_S`` (``fixed_grid``: see ``step``).
+Positions are local NED about the point where the vehicle booted (metres), velocities m/s, angles radians.
 
 What it emulates (PX4 names; ArduCopter differences in brackets):
 
@@ -42,7 +42,7 @@ from sim.autopilot_modes import (
 )
 from sim.autopilot_params import ParamStore, Tuning
 from sim.command_checks import arming_denial, mode_switch_denial
-from sim.dynamics import ControlInput, Dynamics
+from sim.dynamics import ControlInput, Dynamics, VehicleState, ahead
 from sim.failsafe import SetpointLoss, setpoint_loss
 from sim.land_detector import LandDetector, Spoolup
 from sim.navigator import Navigator
@@ -64,7 +64,9 @@ class FlightStack:
         params: dict[str, float] | None = None,
         gps_fix_delay_s: float = 1.0,
         on_event: Callable[[StackEvent], None] | None = None,
+        fixed_grid: bool = False,
     ) -> None:
+        self.fixed_grid = fixed_grid
         self.dyn = dynamics if dynamics is not None else Dynamics()
         self.profile = profile
         self.origin = origin
@@ -74,6 +76,8 @@ class FlightStack:
         self._on_event = on_event
         self._t_s: float | None = None
         self._t0_s = 0.0
+        self._ticks = 0  # physics ticks since the first step
+        self._tick_t_s = 0.0  # the last tick's time
         self.mode = initial_mode(profile)
         self.armed = False
         self.landed_state = LandedState.ON_GROUND
@@ -103,17 +107,35 @@ class FlightStack:
         return self.t_s - self._t0_s
 
     def step(self, t_s: float) -> None:
-        """Advance physics and logic to ``t_s`` (never backwards)."""
+        """Advance physics and logic to ``t_s`` (never backwards).
+
+        ``fixed_grid`` (the in-process vehicle, virtual time): ticks fall on a fixed grid, ``PHYSICS_DT_S`` apart
+        from the first ``step``, as an autopilot's loop runs at its own rate, so who looks at the vehicle, and
+        when, changes nothing of its flight (a run replayed with an observer more, e.g. a truth trace for the
+        run's report, flies exactly as the run without it). A setpoint or a command given between ticks takes
+        effect at the next one; ``truth`` and ``estimate`` see the last tick carried on to ``t_s``. Otherwise
+        (the MAVLink endpoint, wall clock, never repeatable anyway) equal substeps of at most ``PHYSICS_DT_S``
+        end exactly at ``t_s``.
+        """
         if self._t_s is None:
-            self._t_s = self._t0_s = t_s
-        span_s = t_s - self._t_s
-        if span_s <= 1e-9:
+            self._t_s = self._t0_s = self._tick_t_s = t_s
             return
-        n = math.ceil(span_s / PHYSICS_DT_S - 1e-6)  # equal substeps of at most PHYSICS_DT_S
-        t0_s = self._t_s
-        for i in range(1, n + 1):
-            self._t_s = t0_s + span_s * i / n
-            self._tick(self._t_s, span_s / n)
+        if not self.fixed_grid:
+            span_s = t_s - self._t_s
+            if span_s <= 1e-9:
+                return
+            n = math.ceil(span_s / PHYSICS_DT_S - 1e-6)
+            t0_s = self._t_s
+            for i in range(1, n + 1):
+                self._t_s = self._tick_t_s = t0_s + span_s * i / n
+                self._tick(self._t_s, span_s / n)
+            return
+        n = math.floor((t_s - self._t0_s) / PHYSICS_DT_S + 1e-6)
+        while self._ticks < n:
+            self._ticks += 1
+            self._t_s = self._tick_t_s = min(self._t0_s + self._ticks * PHYSICS_DT_S, t_s)  # not after now
+            self._tick(self._t_s, PHYSICS_DT_S)
+        self._t_s = max(self._t_s, t_s)  # now: what a command given now is stamped with (its effect: next tick)
 
     # -- observation ----------------------------------------------------------------------------
 
@@ -141,9 +163,15 @@ class FlightStack:
         return self.t_s - self._sp_t_s
 
     def truth(self) -> Truth:
+        """The truth now (the last ``step``'s time): the last tick's state carried on to it."""
+        state = ahead(self.dyn.state, self.t_s - self._tick_t_s)
         return Truth.of(
-            self.t_s, self.dyn, self.armed, self.mode, self.landed_state, self.home_ned_m, self.gripper_closed
+            self.t_s, self.dyn, self.armed, self.mode, self.landed_state, self.home_ned_m, self.gripper_closed, state
         )
+
+    def estimate(self) -> VehicleState:
+        """What the autopilot believes now (what its telemetry reports): the last tick's estimate carried on."""
+        return ahead(self.dyn.estimate, self.t_s - self._tick_t_s)
 
     # -- commands -------------------------------------------------------------------------------
 

@@ -92,7 +92,9 @@ class InProcessVehicle:
         self.events: list[StackEvent] = []
         self.records: list[dict[str, Any]] = []
         self._state_log = state_log
-        self.stack = FlightStack(dynamics, profile, origin, params, gps_fix_delay_s, on_event=self._on_event)
+        self.stack = FlightStack(  # on a fixed grid: a run is the same whoever watches it
+            dynamics, profile, origin, params, gps_fix_delay_s, on_event=self._on_event, fixed_grid=True
+        )
         self._period_s = 1.0 / physics_hz
         self._stream: PositionTarget | None = None
         self._stream_started_s = 0.0
@@ -136,12 +138,13 @@ class InProcessVehicle:
         if not st.started:
             return TelemetrySnapshot()
         t_s = st.t_s
-        s = st.dyn.estimate  # a new object after every physics step (with the battery's new state)
+        est = st.dyn.estimate  # a new object after every physics step (with the battery's new state)
         of = self._snapshot_of
-        if of and of[0] == t_s and of[1] is s and of[2] is st.mode and of[3] is st.armed and of[4] is st.landed_state:
+        if of and of[0] == t_s and of[1] is est and of[2] is st.mode and of[3] is st.armed and of[4] is st.landed_state:
             if of[5] is st.home_ned_m:
                 return self._snapshot  # nothing moved since it was built
-        self._snapshot_of = (t_s, s, st.mode, st.armed, st.landed_state, st.home_ned_m)
+        self._snapshot_of = (t_s, est, st.mode, st.armed, st.landed_state, st.home_ned_m)
+        s = st.estimate()  # the tick's carried on to now
         self._snapshot = TelemetrySnapshot(
             pos_vel=PositionVelocityNed(t_s, s.pos_ned_m, s.vel_ned_mps),
             attitude=AttitudeEuler(t_s, s.roll_rad, s.pitch_rad, s.yaw_rad),

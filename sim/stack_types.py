@@ -13,7 +13,7 @@ from enum import IntEnum
 
 from app.messages import FlightMode, LandedState, Vec3
 from sim.autopilot_modes import Mode
-from sim.dynamics import Dynamics
+from sim.dynamics import Dynamics, VehicleState
 
 IGNORE_POS = (0x1, 0x2, 0x4)
 IGNORE_VEL = (0x8, 0x10, 0x20)
@@ -153,9 +153,10 @@ class Truth:
         landed_state: LandedState,
         home_ned_m: Vec3 | None,
         gripper_closed: bool,
+        state: VehicleState | None = None,
     ) -> Truth:
-        """The snapshot at ``t_s``: ``dyn``'s state and battery, and the flight stack's own state."""
-        s = dyn.state
+        """The snapshot at ``t_s``: ``dyn``'s state (or ``state``) and battery, and the flight stack's own state."""
+        s = dyn.state if state is None else state
         b = dyn.battery
         return cls(
             t_s=t_s,

@@ -20,10 +20,12 @@ TICK_S = 0.05  # how often the "outside" talks to the stack (MAVSDK's setpoint p
 class Harness:
     """A flight stack driven like the endpoint drives it, with a clock we own."""
 
-    def __init__(self, profile: Profile = Profile.PX4, wind: WindConfig | None = None, **params: float) -> None:
+    def __init__(
+        self, profile: Profile = Profile.PX4, wind: WindConfig | None = None, fixed_grid: bool = False, **params: float
+    ) -> None:
         self.events: list[StackEvent] = []
         dyn = Dynamics(wind=Wind(wind or WindConfig.off(), seed=1))
-        self.fs = FlightStack(dyn, profile, params=params or None, on_event=self.events.append)
+        self.fs = FlightStack(dyn, profile, params=params or None, on_event=self.events.append, fixed_grid=fixed_grid)
         self.t_s = 0.0
         self.fs.step(0.0)
 
@@ -285,3 +287,57 @@ def test_ardupilot_takeoff_is_cancelled_by_a_setpoint_while_still_on_the_ground(
     assert h.fs.takeoff(h.t_s, 5.0) is MavResult.ACCEPTED
     h.advance(3.0, PositionTarget.velocity((0.0, 0.0, 0.0), 0.0))  # a stream already running (§5)
     assert h.height_m < 0.1 and h.fs.landed_state is LandedState.ON_GROUND
+
+
+def _watched_and_plain_diverge(fixed_grid: bool) -> float | None:
+    """Two stacks in the same gusts on the same setpoints every 50 ms; the second also looked at 7 and 31 ms after
+    each: the first time their truths differ, or None over 10 s."""
+    gusty = WindConfig(mean_mps=6.0, from_deg=200.0, gust_sigma_mps=1.5)
+    plain, watched = (Harness(wind=gusty, fixed_grid=fixed_grid).flying() for _ in range(2))
+    setpoint = PositionTarget.velocity((1.5, -0.7, 0.2), 0.3)
+    for h in (plain, watched):
+        h.fs.position_target(h.t_s, setpoint)
+        assert h.fs.set_mode(h.t_s, Mode.OFFBOARD, "test") is MavResult.ACCEPTED
+    for k in range(1, 201):
+        t_s = plain.t_s + k * TICK_S
+        for look_s in (t_s - 0.043, t_s - 0.019):
+            watched.fs.step(look_s)
+            watched.fs.truth()
+        for h in (plain, watched):
+            h.fs.position_target(t_s, setpoint)
+            h.fs.step(t_s)
+        if watched.fs.truth() != plain.fs.truth():
+            return t_s
+    assert plain.fs.dyn.state.vel_ned_mps[0] == pytest.approx(1.5, abs=0.5)  # it flew the setpoint
+    assert t_s - 0.005 < plain.fs.t_s <= t_s + 1e-6  # the last tick at or before now
+    return None
+
+
+def test_on_the_fixed_grid_who_looks_at_the_vehicle_and_when_changes_nothing_of_its_flight() -> None:
+    """Physics ticks on a fixed grid (the in-process vehicle): a stack also stepped at odd times in between (a
+    truth trace for a report, a camera at its own rate) flies bit for bit as the one stepped only when setpoints
+    come, gusts included. Stepping to every query's time (the MAVLink endpoint's way, kept there) cuts the
+    ticks at the query times, and the flight changes with its observers: an evaluation run with ``--run-reports``
+    was not the run without."""
+    assert _watched_and_plain_diverge(fixed_grid=True) is None
+    assert _watched_and_plain_diverge(fixed_grid=False) is not None
+
+
+def test_between_two_ticks_the_truth_and_the_telemetry_are_the_last_tick_carried_on_to_now() -> None:
+    """Looked at 3 ms after a tick, the vehicle flying at ~2 m/s is where it will be then (not where the tick left
+    it): camera frames and telemetry are stamped with their own time, and a state up to 5 ms older than its stamp
+    would put what the camera saw and the state history the app looks it up in out of step."""
+    h, forward = Harness(fixed_grid=True).flying(), PositionTarget.velocity((2.0, 0.0, 0.0), 0.0)
+    h.fs.position_target(h.t_s, forward)
+    assert h.fs.set_mode(h.t_s, Mode.OFFBOARD, "test") is MavResult.ACCEPTED
+    h.advance(4.0, forward)
+    tick = h.fs.truth()
+    tick_est = h.fs.estimate()
+    assert tick.t_s == pytest.approx(h.t_s) and tick.vel_ned_mps[0] == pytest.approx(2.0, abs=0.1)
+    h.fs.step(h.t_s + 0.003)  # no tick falls in these 3 ms
+    later, later_est = h.fs.truth(), h.fs.estimate()
+    assert later.t_s == pytest.approx(h.t_s + 0.003)
+    assert later.pos_ned_m[0] - tick.pos_ned_m[0] == pytest.approx(0.003 * tick.vel_ned_mps[0], rel=0.05)
+    assert later_est.pos_ned_m[0] - tick_est.pos_ned_m[0] == pytest.approx(0.003 * tick_est.vel_ned_mps[0], rel=0.05)
+    h.fs.step(h.t_s + 0.005)  # the next tick: its state, not the extrapolation, from here on
+    assert h.fs.truth().pos_ned_m[0] == pytest.approx(later.pos_ned_m[0] + 0.002 * later.vel_ned_mps[0], abs=1e-3)
