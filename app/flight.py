@@ -72,7 +72,7 @@ def build_flight(
         ConstantBearingParams(
             g.approach_speed_max_mps,
             g.transient_distance_m,
-            g.velocity_lead_s,
+            g.velocity_lead_s if comp.velocity_lead_s is None else comp.velocity_lead_s,
             comp.integral_gain_per_s2,
             g.integral_max_mps,
             g.integral_within_m,

@@ -79,6 +79,12 @@ class AutopilotCompensation(_Model):
     velocity_error_gain: float = Field(
         0.0, ge=0.0, le=5.0, description="K_v: v_sp += K_v (v_sp − v̂) horizontally; 0: off"
     )
+    velocity_lead_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=2.0,
+        description="τ_lead for this autopilot (its velocity response's lag); unset: guidance.velocity_lead_s, s",
+    )
 
 
 class GuidanceSettings(_Model):
