@@ -2,7 +2,8 @@
 
 ``run_pickup(scenario, config)`` flies the whole pickup mission (``app.flight.fly_mission``: the same code as a
 real flight) on the in-process vehicle with the geometric camera and radar heights (``sim.pickup_eval_world``),
-on its own looptime event loop in virtual time, and returns one JSON-able dict: a pure function of its
+on its own event loop in virtual time (``sim.virtual_loop``: the same clock as looptime's, without its system
+calls), and returns one JSON-able dict: a pure function of its
 arguments (every random stream is seeded from the scenario), so a local process and a Dask worker give the same
 result for the same scenario — only ``wall_s`` differs.
 
@@ -23,6 +24,8 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import contextlib
+import gc
 import json
 import sys
 import time
@@ -30,8 +33,6 @@ from collections.abc import Callable, Coroutine, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import looptime
 
 from app.cli import one_line
 from app.clock import LoopClock
@@ -48,11 +49,14 @@ from sim.pickup_eval_world import EvalPickupWorld
 from sim.pickup_scenarios import CONFIGS, EvalConfig
 from sim.pickup_world import PickupScenario
 from sim.safety_rules import RunFacts, check
+from sim.virtual_loop import VirtualTimeLoop
 from sim.wind import WindConfig
 
 EVAL_GEOFENCE_M = 400.0  # the evaluation's geofence radius around home (``_fly``)
 RUN_LIMIT_S = 1500.0  # mission time; the table's own timeouts end every run well before
-NOOP_CYCLES = 0  # no no-op cycles before the clock jumps: no threads or I/O in a run whose callbacks could land
+# a run allocates short-lived objects by the million and keeps its logs: the collector's first generation
+# scanned every 50 000 allocations rather than 700 saves ~5 % of a run's CPU time (a run's heap stays small)
+GC_GEN0_THRESHOLD = 50_000
 OUTCOMES = ("picked_up", "failed", "aborted", "pilot", "timeout", "error")
 TRACE_PERIOD_S = 0.2  # the truth written for a run's report (--run-reports)
 
@@ -73,14 +77,17 @@ class RunInputs:
 def run_pickup(
     scenario: dict[str, Any], config: str, run: int = 0, run_dir: str | None = None, inputs: RunInputs | None = None
 ) -> dict[str, Any]:
-    """Fly one scenario with one configuration (``CONFIGS``) on a fresh looptime loop; see the module docstring.
+    """Fly one scenario with one configuration (``CONFIGS``) on a fresh virtual-time loop; see the module docstring.
     ``run_dir``: also write the run's event log, the simulator's truth, ``report.png`` and ``run.mcap`` there.
     ``inputs``: the evaluation's settings and mission (read from their files now when not given)."""
     wall0 = time.perf_counter()
-    loop = looptime.new_event_loop(noop_cycles=NOOP_CYCLES)
+    loop = VirtualTimeLoop()
     try:
         inputs = inputs if inputs is not None else RunInputs.load()
-        result = loop.run_until_complete(_fly(scenario, CONFIGS[config], inputs, Path(run_dir) if run_dir else None))
+        with _collector_threshold(GC_GEN0_THRESHOLD):
+            result = loop.run_until_complete(
+                _fly(scenario, CONFIGS[config], inputs, Path(run_dir) if run_dir else None)
+            )
     except Exception as e:  # one broken run must not end the evaluation: it is counted as an error
         result = _empty("error", f"{type(e).__name__}: {one_line(e)}")
     finally:
@@ -96,6 +103,17 @@ def run_pickup(
         except Exception as e:  # the recording is a view of the run's logs: without it the result still counts
             print(f"sim.evaluate: {run_dir}: run.mcap not written: {type(e).__name__}: {one_line(e)}", file=sys.stderr)
     return {"run": run, "seed": scenario["seed"], "scenario": scenario, "config": config} | result | {"wall_s": wall_s}
+
+
+@contextlib.contextmanager
+def _collector_threshold(gen0: int) -> Iterator[None]:
+    """The garbage collector's first-generation threshold set to ``gen0`` for the block, then put back."""
+    before = gc.get_threshold()
+    gc.set_threshold(gen0, *before[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*before)
 
 
 def _empty(outcome: str, reason: str) -> dict[str, Any]:
