@@ -32,7 +32,7 @@ from app.offboard.envelope import EnvelopeLimits
 from app.offboard.guidance import ConstantBearingParams
 from app.offboard.setpoint_loop import SetpointLoop
 from app.offboard.vehicle import Vehicle
-from app.settings import Settings
+from app.settings import AutopilotCompensation, Settings
 
 
 @dataclass
@@ -46,12 +46,25 @@ class Flight:
     safety: dict[str, Any]  # what the boundary refused, dropped or had to do (watchdog)
 
 
+def compensation_for(settings: Settings, autopilot: Autopilot) -> AutopilotCompensation:
+    """``guidance.ardupilot`` or ``guidance.px4``: what the loop adds for this autopilot, and its parameters."""
+    return settings.guidance.ardupilot if autopilot is Autopilot.ARDUPILOT else settings.guidance.px4
+
+
+async def set_autopilot_params(vehicle: Vehicle, settings: Settings, clock: Clock, events: EventLog) -> None:
+    """Set the autopilot's parameters the settings ask for (``guidance.<autopilot>.autopilot_params``), each
+    logged; one that is not taken raises ``VehicleError`` and the mission does not start."""
+    for name, value in compensation_for(settings, vehicle.autopilot).autopilot_params.items():
+        await vehicle.set_param(name, value)
+        events.write(clock.now_s(), "run", event="param_set", name=name, value=value)
+
+
 def build_flight(
     vehicle: Vehicle, table: MissionTable, settings: Settings, clock: Clock, events: EventLog
 ) -> tuple[VehicleBoundary, SetpointLoop, MissionRunner]:
     """The boundary, the setpoint loop and the runner for one mission on ``vehicle``."""
     g, e = settings.guidance, settings.envelope
-    comp = g.ardupilot if vehicle.autopilot is Autopilot.ARDUPILOT else g.px4
+    comp = compensation_for(settings, vehicle.autopilot)
     boundary = VehicleBoundary(
         vehicle,
         clock,
@@ -178,6 +191,7 @@ async def fly_mission(
             try:
                 await vehicle.wait_ready(settings.connection.ready_timeout_s)
                 events.write(clock.now_s(), "run", event="vehicle_ready", autopilot=vehicle.autopilot.value)
+                await set_autopilot_params(vehicle, settings, clock, events)
                 result = await runner.run()
             finally:
                 try:

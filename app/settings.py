@@ -7,10 +7,10 @@ blocks. An invalid field is reported as ``ConfigError`` naming its YAML path and
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, ValidationError, model_validator
 
 from app.errors import ConfigError
 
@@ -64,6 +64,9 @@ class EnvelopeSettings(_Model):
     )
 
 
+ParamName = Annotated[str, StringConstraints(min_length=1, max_length=16, pattern=r"^[A-Z0-9_]+$")]
+
+
 class AutopilotCompensation(_Model):
     """What the position loop adds for one autopilot's velocity response (``app.offboard.guidance``)."""
 
@@ -84,6 +87,11 @@ class AutopilotCompensation(_Model):
         ge=0.0,
         le=2.0,
         description="τ_lead for this autopilot (its velocity response's lag); unset: guidance.velocity_lead_s, s",
+    )
+    autopilot_params: dict[ParamName, Annotated[float, Field(allow_inf_nan=False)]] = Field(
+        default_factory=dict,
+        description="float parameters set on the autopilot (PARAM_SET) once it is ready, before arming; "
+        "names of 1-16 characters, finite values",
     )
 
 

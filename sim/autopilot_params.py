@@ -58,6 +58,8 @@ _ARDUPILOT_DEFAULTS: tuple[tuple[str, float, ParamType], ...] = (
     ("DISARM_DELAY", 10, ParamType.INT8),  # s landed → disarm
     ("SYSID_THISMAV", 1, ParamType.INT16),
     ("FRAME_CLASS", 1, ParamType.INT8),  # quad
+    ("PSC_JERK_XY", 5.0, ParamType.REAL32),  # m/s³, GUIDED's horizontal input shaping (range 1-20)
+    ("WPNAV_ACCEL", 250.0, ParamType.REAL32),  # cm/s², GUIDED's horizontal acceleration limit
 )
 
 
@@ -69,6 +71,7 @@ class ParamStore:
         defaults = _ARDUPILOT_DEFAULTS if profile is Profile.ARDUPILOT else _PX4_DEFAULTS
         self._params = [Param(n, float(v), t) for n, v, t in defaults]
         self._index = {p.name: i for i, p in enumerate(self._params)}
+        self.version = 0  # counts the sets: a reader caching a value knows when to read it again
         for name, value in (overrides or {}).items():
             if not self.set(name, value):
                 raise KeyError(f"unknown parameter {name!r} for {profile}")
@@ -105,6 +108,7 @@ class ParamStore:
             if p.type is not ParamType.REAL32
             else float(struct.unpack("<f", struct.pack("<f", value))[0])
         )
+        self.version += 1
         return True
 
     # -- wire encoding -------------------------------------------------------------------------
@@ -135,6 +139,12 @@ class Tuning:
 
     def takeoff_alt_m(self) -> float:
         return 2.5 if self._ap else self._p.get("MIS_TAKEOFF_ALT")
+
+    def shaping_xy(self) -> tuple[float, float] | None:
+        """ArduCopter GUIDED's horizontal shaping limits: (jerk m/s³, acceleration m/s²); None on PX4."""
+        if not self._ap:
+            return None
+        return self._p.get("PSC_JERK_XY"), self._p.get("WPNAV_ACCEL") / 100.0
 
     def offboard_loss_s(self) -> float:
         return self._p.get("GUID_TIMEOUT") if self._ap else self._p.get("COM_OF_LOSS_T")

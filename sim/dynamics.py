@@ -26,7 +26,7 @@ K_pos·(p_target − p) + v_des with a_des as feed-forward. ``sim.airframes`` ho
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from sim.estimator import EstimatorError
 from sim.poscontrol import GuidedVelocityShaper, PosControlParams
@@ -302,6 +302,18 @@ class Dynamics:
         self._moved()
         if self._shaper is not None:
             self._shaper.reset(self.estimate.pos_ned_m, self.estimate.vel_ned_mps)
+
+    @property
+    def shaping_xy(self) -> tuple[float, float] | None:
+        """ArduCopter's horizontal shaping limits in use: (jerk m/s³, acceleration m/s²); None without it."""
+        sh = self._shaper
+        return None if sh is None else (sh.params.jerk_xy_mps3, sh.params.accel_xy_mps2)
+
+    def set_shaping_xy(self, jerk_mps3: float, accel_mps2: float) -> None:
+        """ArduCopter's horizontal shaping limits (PSC_JERK_XY, WPNAV_ACCEL) from now on; no-op without it."""
+        sh = self._shaper
+        if sh is not None and (sh.params.jerk_xy_mps3, sh.params.accel_xy_mps2) != (jerk_mps3, accel_mps2):
+            sh.params = replace(sh.params, jerk_xy_mps3=jerk_mps3, accel_xy_mps2=accel_mps2)
 
     def reset_integrators(self) -> None:
         self._vel_int = [0.0, 0.0, 0.0]

@@ -72,6 +72,7 @@ class FlightStack:
         self.origin = origin
         self.params = ParamStore(profile, params)
         self.tuning = Tuning(self.params)
+        self._params_version = -1  # the parameter set the physics was last given (``_apply_params``)
         self.gps_fix_delay_s = gps_fix_delay_s
         self._on_event = on_event
         self._t_s: float | None = None
@@ -316,6 +317,8 @@ class FlightStack:
             self._enter(Mode.AUTO_LOITER, "landed")
 
     def _tick(self, t_s: float, dt_s: float) -> None:
+        if self.params.version != self._params_version:
+            self._apply_params()
         if self.home_ned_m is None and self.gps_ok:
             self._set_home(self.dyn.estimate.pos_ned_m)
         self._failsafes(t_s)
@@ -323,6 +326,13 @@ class FlightStack:
         self.dyn.step(dt_s, control, armed=self.armed)
         self._update_landed_state(t_s)
         self._auto_disarm(t_s)
+
+    def _apply_params(self) -> None:
+        """Parameters the physics reads (a PARAM_SET takes effect at the next tick): ArduCopter's shaping."""
+        self._params_version = self.params.version
+        shaping = self.tuning.shaping_xy()
+        if shaping is not None:
+            self.dyn.set_shaping_xy(*shaping)
 
     def _failsafes(self, t_s: float) -> None:
         loss = setpoint_loss(self.mode, self._guided_sub, self._sp, t_s - self._sp_t_s, self.tuning.offboard_loss_s())

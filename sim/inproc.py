@@ -164,6 +164,17 @@ class InProcessVehicle:
     def link_stats(self) -> dict[str, float | str | None]:
         return {}  # no link: samples are read straight from the physics
 
+    async def set_param(self, name: str, value: float) -> None:
+        """As MAVSDK's param plugin: an unknown name is ``DOES_NOT_EXIST``; a set one is logged (``param``)."""
+        t_s = self._advance()
+        store = self.stack.params
+        if name not in store:
+            raise VehicleError("set_param", "DOES_NOT_EXIST", name)
+        if not store.set(name, value):
+            raise VehicleError("set_param", "VALUE_OUT_OF_RANGE", f"{name} {value}")
+        self._record("param", t_s, name=name, value=store.get(name))
+        await asyncio.sleep(0)
+
     async def arm(self) -> None:
         t_s = self._advance()
         self._check("arm", self._command(t_s, "COMPONENT_ARM_DISARM", self.stack.arm(t_s)))

@@ -27,6 +27,7 @@ from mavsdk.asyncio.autopilot import Autopilot as MavAutopilot
 from mavsdk.asyncio.plugins.action import ActionAsync, ActionError
 from mavsdk.asyncio.plugins.gripper import GripperAsync, GripperError
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, OffboardError, VelocityNedYaw
+from mavsdk.asyncio.plugins.param import ParamAsync, ParamError
 from mavsdk.logging import LogLevel, log_subscribe
 
 from app.clock import Clock
@@ -85,6 +86,7 @@ class MavsdkVehicle:
         self._action = ActionAsync(system)
         self._offboard = OffboardAsync(system)
         self._gripper = GripperAsync(system)
+        self._param = ParamAsync(system)
         # The same plugin instance, called synchronously (a second Offboard plugin would re-send on its own).
         self._offboard_sync = self._offboard._plugin
         self._streams = MavsdkTelemetry(system, autopilot, clock, events, tel)
@@ -154,10 +156,13 @@ class MavsdkVehicle:
     async def _call(self, name: str, coro: Awaitable[Any]) -> None:
         try:
             await coro
-        except (ActionError, OffboardError, GripperError) as e:
+        except (ActionError, OffboardError, GripperError, ParamError) as e:
             raise VehicleError(name, e.result.name, str(e)) from e
         except MavsdkError as e:
             raise VehicleError(name, "ERROR", str(e)) from e
+
+    async def set_param(self, name: str, value: float) -> None:
+        await self._call("set_param", self._param.set_param_float(name, value))
 
     async def arm(self) -> None:
         """Arm; a refusal is retried (pre-arm checks may still be running) until the retry timeout."""

@@ -52,6 +52,10 @@ class Vehicle(Protocol):
         """Figures about the telemetry link for the run summary (e.g. sample latency); may be empty."""
         ...
 
+    async def set_param(self, name: str, value: float) -> None:
+        """Set a float parameter on the autopilot (PARAM_SET); raises ``VehicleError`` if it is not taken."""
+        ...
+
     async def arm(self) -> None: ...
 
     async def takeoff(self, altitude_m: float) -> None:

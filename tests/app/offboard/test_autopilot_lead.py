@@ -46,8 +46,9 @@ async def desired_north(profile: Profile, settings_file: str) -> float:
 
 @LOOPTIME
 async def test_ardupilot_leads_by_its_shaping_lag_and_px4_by_its_velocity_loop_lag():
-    # ArduPilot: v_t + τ·a_t with τ = 0.5 s (GUIDED's 1/K_a) and nothing else added
-    assert await desired_north(Profile.ARDUPILOT, "default.yaml") == pytest.approx(0.5, abs=1e-6)
+    # ArduPilot: v_t + τ·a_t with τ = 0.2 s (GUIDED's 1/K_a = WPNAV_ACCEL / PSC_JERK_XY = 2.5 / 20, which the
+    # settings set, and some of its delay) and nothing else added
+    assert await desired_north(Profile.ARDUPILOT, "default.yaml") == pytest.approx(0.2, abs=1e-6)
     # PX4: τ = 0.7 s, and its velocity-error feedback K_v = 2 on top (bounded at 1 m/s): 0.7 + 1.0
     assert await desired_north(Profile.PX4, "default.yaml") == pytest.approx(1.7, abs=1e-3)
 

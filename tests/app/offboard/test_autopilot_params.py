@@ -1,0 +1,117 @@
+"""Parameters the settings set on the autopilot before arming (``guidance.<autopilot>.autopilot_params``):
+ArduPilot's PSC_JERK_XY, over MAVLink and in process, as the vehicle sees them."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import pytest
+
+from app.clock import LoopClock
+from app.errors import VehicleError
+from app.eventlog import EventLog
+from app.flight import set_autopilot_params
+from app.settings import Settings, load_settings
+from sim.autopilot import SimAutopilot, SimConfig
+from sim.autopilot_modes import Profile
+from sim.inproc import InProcessVehicle
+from sim.wind import WindConfig
+from tests.sim.conftest import eventually, free_udp_port
+
+LOOPTIME = pytest.mark.looptime(noop_cycles=2)
+
+
+def with_params(params: dict[str, float]) -> Settings:
+    s = load_settings()
+    ap = s.guidance.ardupilot.model_copy(update={"autopilot_params": params})
+    return s.model_copy(update={"guidance": s.guidance.model_copy(update={"ardupilot": ap})})
+
+
+def param_records(vehicle: InProcessVehicle) -> list[tuple[str, float]]:
+    return [(r["name"], r["value"]) for r in vehicle.records if r["event"] == "param"]
+
+
+@LOOPTIME
+async def test_ardupilot_gets_psc_jerk_xy_20_and_its_shaping_uses_it_px4_gets_nothing():
+    events = EventLog(None)
+    logged: list[dict[str, object]] = []
+    events.subscribe({"run"}, logged.append)
+    ap = InProcessVehicle(profile=Profile.ARDUPILOT, wind=WindConfig.off())
+    await ap.wait_ready(10.0)
+    assert ap.stack.dyn.shaping_xy == (5.0, 2.5)  # ArduCopter's defaults: PSC_JERK_XY 5, WPNAV_ACCEL 250 cm/s²
+    await set_autopilot_params(ap, load_settings(), LoopClock(), events)
+    await asyncio.sleep(0.01)
+    ap.truth()  # the physics brought up to now: the next tick took it
+    assert param_records(ap) == [("PSC_JERK_XY", 20.0)]  # the vehicle's own log
+    assert ap.stack.params.get("PSC_JERK_XY") == 20.0 and ap.stack.dyn.shaping_xy == (20.0, 2.5)
+    assert [(r["name"], r["value"]) for r in logged if r.get("event") == "param_set"] == [("PSC_JERK_XY", 20.0)]
+
+    px4 = InProcessVehicle(profile=Profile.PX4, wind=WindConfig.off())
+    await px4.wait_ready(10.0)
+    await set_autopilot_params(px4, load_settings(), LoopClock(), EventLog(None))
+    assert param_records(px4) == [] and px4.stack.dyn.shaping_xy is None
+
+
+@LOOPTIME
+async def test_an_unknown_parameter_is_refused_and_nothing_is_set():
+    vehicle = InProcessVehicle(profile=Profile.ARDUPILOT, wind=WindConfig.off())
+    await vehicle.wait_ready(10.0)
+    with pytest.raises(VehicleError) as e:
+        await set_autopilot_params(vehicle, with_params({"PSC_JERK_XZ": 20.0}), LoopClock(), EventLog(None))
+    assert (e.value.command, e.value.result) == ("set_param", "DOES_NOT_EXIST")
+    assert param_records(vehicle) == [] and vehicle.stack.params.get("PSC_JERK_XY") == 5.0
+
+
+async def velocity_after(jerk_mps3: float, after_s: float) -> float:
+    """North velocity of the simulated ArduCopter ``after_s`` into a 0 → 1 m/s north setpoint step in GUIDED."""
+    vehicle = InProcessVehicle(profile=Profile.ARDUPILOT, wind=WindConfig.off(), params={"PSC_JERK_XY": jerk_mps3})
+    await vehicle.wait_ready(10.0)
+    await vehicle.arm()
+    await vehicle.takeoff(3.0)
+    await asyncio.sleep(8.0)
+    await vehicle.start_offboard(0.0)
+    await asyncio.sleep(1.0)
+    t_end = asyncio.get_running_loop().time() + after_s
+    while asyncio.get_running_loop().time() < t_end:
+        await vehicle.set_velocity_ned((1.0, 0.0, 0.0), 0.0)
+        await asyncio.sleep(0.02)
+    return vehicle.truth().vel_ned_mps[0]
+
+
+@LOOPTIME
+async def test_a_higher_jerk_limit_answers_a_velocity_step_sooner():
+    slow, fast = await velocity_after(5.0, 0.6), await velocity_after(20.0, 0.6)
+    print(f"0.6 s into a 1 m/s step: {slow:.2f} m/s with PSC_JERK_XY 5, {fast:.2f} m/s with 20")
+    assert fast > slow + 0.15
+
+
+async def test_over_mavlink_mavsdk_sets_it_and_the_simulated_ardupilot_flies_with_it(tmp_path):
+    from app.offboard.mavsdk_vehicle import MavsdkVehicle
+
+    log = tmp_path / "sim_state.jsonl"
+    port = free_udp_port()
+    sim = SimAutopilot(
+        SimConfig(
+            target=("127.0.0.1", port),
+            pilot_port=0,
+            profile=Profile.ARDUPILOT,
+            state_log=str(log),
+            wind=WindConfig.off(),
+            seed=1,
+        )
+    )
+    settings, clock, events = load_settings(), LoopClock(), EventLog(None)
+    asyncio.get_running_loop().call_later(0.5, sim.start)  # after MAVSDK listens
+    try:
+        url = f"udpin://0.0.0.0:{port}"
+        async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
+            streams = asyncio.create_task(vehicle.run())
+            await vehicle.wait_ready(30.0)
+            await set_autopilot_params(vehicle, settings, clock, events)
+            await eventually(lambda: sim.stack.dyn.shaping_xy == (20.0, 2.5), 2.0)
+            streams.cancel()
+    finally:
+        sim.stop()
+    params = [(r["name"], r["value"]) for r in map(json.loads, log.read_text().splitlines()) if r["event"] == "param"]
+    assert params == [("PSC_JERK_XY", 20.0)]
