@@ -141,10 +141,14 @@ class Tuning:
         return 2.5 if self._ap else self._p.get("MIS_TAKEOFF_ALT")
 
     def shaping_xy(self) -> tuple[float, float] | None:
-        """ArduCopter GUIDED's horizontal shaping limits: (jerk m/s³, acceleration m/s²); None on PX4."""
+        """ArduCopter GUIDED's horizontal shaping limits: (jerk m/s³, acceleration m/s²); None on PX4. Values
+        outside the documented ranges (PSC_JERK_XY 1-20 m/s³, WPNAV_ACCEL 50-500 cm/s²) are taken at the
+        nearest end (a zero would stop the shaping altogether)."""
         if not self._ap:
             return None
-        return self._p.get("PSC_JERK_XY"), self._p.get("WPNAV_ACCEL") / 100.0
+        jerk = min(max(self._p.get("PSC_JERK_XY"), 1.0), 20.0)
+        accel_cm = min(max(self._p.get("WPNAV_ACCEL"), 50.0), 500.0)
+        return jerk, accel_cm / 100.0
 
     def offboard_loss_s(self) -> float:
         return self._p.get("GUID_TIMEOUT") if self._ap else self._p.get("COM_OF_LOSS_T")

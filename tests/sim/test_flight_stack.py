@@ -7,6 +7,7 @@ import math
 import pytest
 
 from app.messages import FlightMode, LandedState
+from sim import airframes
 from sim.autopilot_modes import MavResult, Mode, Profile
 from sim.autopilot_params import ParamStore, ParamType
 from sim.dynamics import Dynamics
@@ -211,6 +212,20 @@ def test_px4_params_use_bytewise_int_encoding_and_ardupilot_a_cast() -> None:
     ap = ParamStore(Profile.ARDUPILOT)
     q = ap.param("RTL_ALT")
     assert q is not None and ap.encode(q) == 1500.0
+
+
+def test_ardupilot_shaping_limits_follow_their_params_within_the_documented_ranges() -> None:
+    fs = FlightStack(Dynamics(airframes.ARDUCOPTER, Wind(WindConfig.off(), seed=1)), Profile.ARDUPILOT)
+    fs.step(0.0)
+    fs.step(0.1)
+    assert fs.dyn.shaping_xy == (5.0, 2.5)  # PSC_JERK_XY 5 m/s³, WPNAV_ACCEL 250 cm/s²
+    assert fs.params.set("PSC_JERK_XY", 12.0) and fs.params.set("WPNAV_ACCEL", 400.0)
+    fs.step(0.2)
+    assert fs.dyn.shaping_xy == (12.0, 4.0)
+    assert fs.params.set("PSC_JERK_XY", 0.0) and fs.params.set("WPNAV_ACCEL", 9000.0)
+    fs.step(0.3)
+    assert fs.dyn.shaping_xy == (1.0, 5.0)  # the ends of the ranges (1-20 m/s³, 50-500 cm/s²)
+    assert Harness(Profile.PX4).fs.tuning.shaping_xy() is None
 
 
 # -- ArduCopter profile ---------------------------------------------------------------------------
