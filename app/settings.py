@@ -123,8 +123,9 @@ class GuidanceSettings(_Model):
         description="compensation for PX4 (offboard velocity control is a velocity loop only)",
     )
     ardupilot: AutopilotCompensation = Field(
-        default_factory=AutopilotCompensation,
-        description="compensation for ArduPilot (GUIDED tracks a position target of its own: none needed)",
+        default_factory=lambda: AutopilotCompensation(velocity_lead_s=0.2, autopilot_params={"PSC_JERK_XY": 20.0}),
+        description="compensation for ArduPilot (GUIDED tracks a position target of its own: only its lag is led, "
+        "shortened by a higher shaping jerk limit)",
     )
     setpoint_rate_hz: float = Field(50.0, ge=20.0, le=100.0, description="offboard setpoint loop rate, Hz")
     exit_zero_s: float = Field(
