@@ -54,6 +54,30 @@ async def mavsdk_on_sim(**config: Any) -> AsyncIterator[Connected]:
         sim.stop()
 
 
+@asynccontextmanager
+async def app_vehicle_on_sim(
+    settings: Any, clock: Any, events: Any, **config: Any
+) -> AsyncIterator[tuple[SimAutopilot, Any]]:
+    """The endpoint (thread) on a free port and the app's own ``MavsdkVehicle`` connected to it, its telemetry
+    streams running and ready."""
+    from app.offboard.mavsdk_vehicle import MavsdkVehicle
+
+    port = free_udp_port()
+    sim = SimAutopilot(SimConfig(target=("127.0.0.1", port), pilot_port=0, **config))
+    asyncio.get_running_loop().call_later(0.5, sim.start)  # after MAVSDK listens
+    try:
+        url = f"udpin://0.0.0.0:{port}"
+        async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
+            streams = asyncio.create_task(vehicle.run())
+            try:
+                await vehicle.wait_ready(30.0)
+                yield sim, vehicle
+            finally:
+                streams.cancel()
+    finally:
+        sim.stop()
+
+
 async def first(stream: AsyncIterator[Any], predicate: Callable[[Any], bool], timeout_s: float) -> Any:
     """The first item of ``stream`` that satisfies ``predicate`` (closing the stream), or TimeoutError."""
 

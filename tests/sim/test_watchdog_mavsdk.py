@@ -13,45 +13,33 @@ from app.flight import build_flight
 from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.settings import Settings
-from sim.autopilot import SimAutopilot, SimConfig
 from sim.wind import WindConfig
-from tests.sim.conftest import eventually, free_udp_port
+from tests.sim.conftest import app_vehicle_on_sim, eventually
 
 
 async def test_a_blocked_event_loop_gets_the_resent_setpoint_zeroed_by_the_watchdog_thread(tmp_path):
-    from app.offboard.mavsdk_vehicle import MavsdkVehicle
-
     log = tmp_path / "sim_state.jsonl"
-    port = free_udp_port()
-    sim = SimAutopilot(
-        SimConfig(target=("127.0.0.1", port), pilot_port=0, state_log=str(log), wind=WindConfig.off(), seed=1)
-    )
     settings, clock, events = Settings(), LoopClock(), EventLog(None)
-    asyncio.get_running_loop().call_later(0.5, sim.start)  # after MAVSDK listens
-    try:
-        url = f"udpin://0.0.0.0:{port}"
-        async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
-            streams = asyncio.create_task(vehicle.run())
-            await vehicle.wait_ready(30.0)
-            boundary, _, _ = build_flight(vehicle, load_mission("circle"), settings, clock, events)
-            boundary.flying = True
-            await boundary.arm()
-            await boundary.takeoff(3.0)
-            await eventually(lambda: vehicle.telemetry().mode() is FlightMode.HOLD, 30.0)
-            await boundary.start_offboard()
-            for _ in range(50):  # 1 s at 1 m/s north
-                await boundary.send_velocity((1.0, 0.0, 0.0), 0.0)
-                await asyncio.sleep(0.02)
-            t_block = time.time()
-            time.sleep(1.0)  # noqa: ASYNC251 — the event loop is blocked on purpose: nothing on it runs
-            t_unblock = time.time()
-            for _ in range(10):
-                await boundary.send_velocity((1.0, 0.0, 0.0), 0.0)
-                await asyncio.sleep(0.02)
-            await boundary.release("test")
-            streams.cancel()
-    finally:
-        sim.stop()
+    async with app_vehicle_on_sim(settings, clock, events, state_log=str(log), wind=WindConfig.off(), seed=1) as (
+        _,
+        vehicle,
+    ):
+        boundary, _, _ = build_flight(vehicle, load_mission("circle"), settings, clock, events)
+        boundary.flying = True
+        await boundary.arm()
+        await boundary.takeoff(3.0)
+        await eventually(lambda: vehicle.telemetry().mode() is FlightMode.HOLD, 30.0)
+        await boundary.start_offboard()
+        for _ in range(50):  # 1 s at 1 m/s north
+            await boundary.send_velocity((1.0, 0.0, 0.0), 0.0)
+            await asyncio.sleep(0.02)
+        t_block = time.time()
+        time.sleep(1.0)  # noqa: ASYNC251 — the event loop is blocked on purpose: nothing on it runs
+        t_unblock = time.time()
+        for _ in range(10):
+            await boundary.send_velocity((1.0, 0.0, 0.0), 0.0)
+            await asyncio.sleep(0.02)
+        await boundary.release("test")
     sps = [r for r in map(json.loads, log.read_text().splitlines()) if r["event"] == "setpoint"]
     during = [r for r in sps if t_block <= r["t_wall"] <= t_unblock]
     zeros = [r for r in during if r["vel_ned_mps"] == [0.0, 0.0, 0.0]]

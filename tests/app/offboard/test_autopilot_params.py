@@ -13,11 +13,10 @@ from app.errors import VehicleError
 from app.eventlog import EventLog
 from app.flight import set_autopilot_params
 from app.settings import Settings, load_settings
-from sim.autopilot import SimAutopilot, SimConfig
 from sim.autopilot_modes import Profile
 from sim.inproc import InProcessVehicle
 from sim.wind import WindConfig
-from tests.sim.conftest import eventually, free_udp_port
+from tests.sim.conftest import app_vehicle_on_sim, eventually
 
 LOOPTIME = pytest.mark.looptime(noop_cycles=2)
 
@@ -87,31 +86,12 @@ async def test_a_higher_jerk_limit_answers_a_velocity_step_sooner():
 
 
 async def test_over_mavlink_mavsdk_sets_it_and_the_simulated_ardupilot_flies_with_it(tmp_path):
-    from app.offboard.mavsdk_vehicle import MavsdkVehicle
-
     log = tmp_path / "sim_state.jsonl"
-    port = free_udp_port()
-    sim = SimAutopilot(
-        SimConfig(
-            target=("127.0.0.1", port),
-            pilot_port=0,
-            profile=Profile.ARDUPILOT,
-            state_log=str(log),
-            wind=WindConfig.off(),
-            seed=1,
-        )
-    )
     settings, clock, events = load_settings(), LoopClock(), EventLog(None)
-    asyncio.get_running_loop().call_later(0.5, sim.start)  # after MAVSDK listens
-    try:
-        url = f"udpin://0.0.0.0:{port}"
-        async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
-            streams = asyncio.create_task(vehicle.run())
-            await vehicle.wait_ready(30.0)
-            await set_autopilot_params(vehicle, settings, clock, events)
-            await eventually(lambda: sim.stack.dyn.shaping_xy == (20.0, 2.5), 2.0)
-            streams.cancel()
-    finally:
-        sim.stop()
+    config = {"profile": Profile.ARDUPILOT, "state_log": str(log), "wind": WindConfig.off(), "seed": 1}
+    async with app_vehicle_on_sim(settings, clock, events, **config) as (sim, vehicle):
+        assert sim.stack.dyn.shaping_xy == (5.0, 2.5)
+        await set_autopilot_params(vehicle, settings, clock, events)
+        await eventually(lambda: sim.stack.dyn.shaping_xy == (20.0, 2.5), 2.0)
     params = [(r["name"], r["value"]) for r in map(json.loads, log.read_text().splitlines()) if r["event"] == "param"]
     assert params == [("PSC_JERK_XY", 20.0)]
