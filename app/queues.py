@@ -100,18 +100,10 @@ class LatestQueue(Generic[T]):
 
 
 def _wake(waiters: list[asyncio.Future[None]]) -> None:
-    """Resolve each waiter on its own loop (the caller may be any thread); a closed loop has nobody waiting.
-
-    From the loop's own thread the callback is queued as ``call_soon_threadsafe`` would queue it, without
-    writing to the loop's self-pipe: the loop is running this very code, not blocked in its selector."""
-    running = asyncio._get_running_loop()
+    """Resolve each waiter on its own loop (the caller may be any thread); a closed loop has nobody waiting."""
     for waiter in waiters:
-        loop = waiter.get_loop()
         try:
-            if loop is running:
-                loop.call_soon(_resolve, waiter)
-            else:
-                loop.call_soon_threadsafe(_resolve, waiter)
+            waiter.get_loop().call_soon_threadsafe(_resolve, waiter)
         except RuntimeError:  # the loop is closed
             pass
 
