@@ -132,6 +132,23 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
     return PickupEstimates(tri, make_target_filter(p), checks, search_centre_ne_m=p.search_start_ne_m)
 
 
+SEARCH_ALTITUDE_FLOOR_M = 3.0  # params.search_altitude_m's lower bound
+
+
+def resolve_search_altitude(table: MissionTable, settings: Settings) -> MissionTable:
+    """The pickup's search height from the detector's reach (``search_object_px``): as high as the object — the
+    marker's edge, or the buoy's diameter (``detector.kind``) — still spans that many pixels on the camera, but no
+    higher than ``search_altitude_m``. A printed marker is found from higher up than a small buoy, and a higher
+    search sees a wider strip of sea: it outruns an object drifting away from the search's centre."""
+    p = table.params
+    if model_name(table) != "pickup" or p.search_object_px is None:
+        return table
+    size_m = settings.detector.buoy_diameter_m if settings.detector.kind == "buoy" else p.marker_size_m
+    reach_m = min(settings.camera.fx_px, settings.camera.fy_px) * size_m / p.search_object_px
+    altitude_m = max(SEARCH_ALTITUDE_FLOOR_M, min(p.search_altitude_m, reach_m))
+    return table.model_copy(update={"params": p.model_copy(update={"search_altitude_m": altitude_m})})
+
+
 async def fly_mission(
     vehicle: Vehicle,
     table: MissionTable,
@@ -151,6 +168,12 @@ async def fly_mission(
     simulator's in-process sensors. With ``ground`` the ground station's link runs alongside (``app.gcs.mission``):
     the mission waits for its start, takes its commands and reports to it.
     """
+    resolved = resolve_search_altitude(table, settings)
+    if resolved is not table:
+        p = resolved.params
+        events.write(clock.now_s(), "run", event="search_altitude", altitude_m=round(p.search_altitude_m, 3),
+                     object_px=p.search_object_px, detector=settings.detector.kind)  # fmt: skip
+    table = resolved
     boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
     bridge = MissionBridge(ground, runner, clock, events) if ground is not None else None
     feeds = PickupFeeds(model=runner.mission if isinstance(runner.mission, PickupEstimates) else None)

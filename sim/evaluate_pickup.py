@@ -130,7 +130,9 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: 
     # the operator sets the fence around the operating area: the objects start 40-80 m out and drift up to 1 m/s
     # for minutes (the default 100 m fence stops the vehicle following most of the faster ones)
     envelope = settings.envelope.model_copy(update={"geofence_radius_m": EVAL_GEOFENCE_M})
-    settings = settings.model_copy(update={"envelope": envelope})
+    # the operator knows what floats out there: the detector for it (as ``app.main --object``)
+    detector = settings.detector.model_copy(update={"kind": "buoy" if sc["object_kind"] == "buoy" else "aruco"})
+    settings = settings.model_copy(update={"envelope": envelope, "detector": detector})
     profile = SIM_PROFILES[sc["profile"]]
     wind = WindConfig(mean_mps=sc["wind_mps"], from_deg=sc["wind_from_deg"], gust_sigma_mps=sc["gust_sigma_mps"])
     vehicle = InProcessVehicle(

@@ -203,6 +203,7 @@ async def start_descend(io: MissionIO) -> None:
         p.crest_margin_m,
         p.descend_max_lead_m,
         p.final_max_speed_mps,
+        math.inf if p.final_blind_gap_s is None else p.final_blind_gap_s,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

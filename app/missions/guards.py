@@ -151,13 +151,17 @@ def touchdown(ctx: GuardContext) -> bool:
 
 
 def touchdown_off_target(ctx: GuardContext) -> bool:
-    """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, without one, or with
-    a fix older than ``grab_fix_max_age_s``: no grab there — climb back and try again. The last half metre is
-    flown blind (the camera's view there is smaller than the object's offset plus the tilt), but a fix much older
-    than that descent means the object was lost higher up, and the estimate drifts off it by decimetres a second."""
+    """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, without one, with
+    a fix older than ``grab_fix_max_age_s``, or after DESCEND gave its final part up (``final_descent_given_up``:
+    it had drifted or gone blind off the object and was climbing back): no grab there — climb back and try again.
+    The last half metre is flown blind (the camera's view there is smaller than the object's offset plus the tilt),
+    but a fix much older than that descent means the object was lost higher up, and the estimate drifts off it by
+    decimetres a second."""
     if not touchdown(ctx):
         return False
     e = ctx.estimates
+    if e.progress.get("final_descent_given_up", 0.0) >= 1.0:  # a crest met on the way back up: not over it
+        return True
     if e.fix_age_s is None or e.fix_age_s > ctx.params.grab_fix_max_age_s:
         return True
     t = e.target

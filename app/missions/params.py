@@ -53,6 +53,13 @@ class MissionParams(BaseModel):
         "moves with it from the mission's start",
     )
     search_altitude_m: float = Field(10.0, ge=3.0, le=60.0, description="search height above home, m")
+    search_object_px: float | None = Field(
+        None,
+        ge=5.0,
+        le=200.0,
+        description="search as high as the object still spans this many pixels (the detector's reach: the marker's "
+        "edge, the buoy's diameter), but no higher than search_altitude_m; unset: at search_altitude_m, px",
+    )
     search_speed_mps: float = Field(2.0, ge=0.2, le=10.0, description="speed along the search pattern, m/s")
     search_overlap: float = Field(0.3, ge=0.0, le=0.8, description="overlap of neighbouring camera footprints")
     search_max_radius_m: float = Field(30.0, ge=5.0, le=500.0, description="search no farther from its centre, m")
@@ -81,6 +88,14 @@ class MissionParams(BaseModel):
     )
     final_abort_radius_m: float = Field(
         0.2, ge=0.02, le=5.0, description="below the final height, this far off the estimate climbs back to it, m"
+    )
+    final_blind_gap_s: float | None = Field(
+        None,
+        ge=0.05,
+        le=5.0,
+        description="in the final descent, no new fix for this long: the camera has lost the object low down (its "
+        "view is smaller than the offset plus the tilt); go on blind only within final_radius_m of the estimate and "
+        "moving with it (final_max_speed_mps), else climb back to the final height; unset: no such check, s",
     )
     crest_margin_m: float = Field(
         0.3, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"

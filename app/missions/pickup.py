@@ -167,6 +167,9 @@ class PickupEstimates:
         self.search_drift_ne_mps: tuple[float, float] = (0.0, 0.0)
         self.last_estimate_t_s: float | None = None
         self.search: SearchPattern | None = None
+        # DESCEND's final part given up (drifted off the object, or went blind off it) and not begun again: water
+        # met now is no place to grab (``DescendTarget`` keeps it)
+        self.final_descent_given_up = False
         self.last_estimate_ne_m: tuple[float, float] | None = None
         self.fix_times_s: deque[float] = deque(maxlen=100_000)  # capture times of the fused fixes
         # every triangulated fix past the size check: (capture t_s, north, east, what became of it), for the
@@ -462,6 +465,7 @@ class PickupEstimates:
             "verify_up_for_s": -1.0 if self.verify_up_t_s is None else t_s - self.verify_up_t_s,
             "picked_up": 1.0 if self.picked_up else 0.0,
             "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
+            "final_descent_given_up": 1.0 if self.final_descent_given_up else 0.0,
         }
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,

@@ -22,6 +22,7 @@ from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot, Ve
 from app.missions.pickup import PickupEstimates
 
 Telemetry = Callable[[], TelemetrySnapshot]
+FIX_TIME_TOLERANCE_S = 1e-6  # a fix's time read back as now − its age: the same fix within rounding
 
 
 def expanding_square(
@@ -181,7 +182,11 @@ class DescendTarget(ObjectTarget):
     over the object: it starts within ``final_radius_m`` of the estimate, moving with it (relative horizontal speed
     at most ``final_max_speed_mps``: a vehicle that lags the object's wave orbit slides off it on the way down)
     and, drifting past
-    ``final_abort_radius_m``, climbs back to the final height and waits again. The desired height never leads
+    ``final_abort_radius_m``, climbs back to the final height and waits again. The last half metre or so is flown
+    blind (the camera's view there is smaller than the object's offset plus the tilt, and the estimate drifts off
+    the object by decimetres a second): when no new fix has come for ``blind_gap_s``, the descent goes on only if
+    the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start — else it
+    climbs back to the final height while the camera can still see the object. The desired height never leads
     the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
     would otherwise come down at the envelope's full speed."""
 
@@ -202,6 +207,7 @@ class DescendTarget(ObjectTarget):
         crest_margin_m: float = 0.0,
         max_lead_m: float = math.inf,
         final_max_speed_mps: float = math.inf,
+        blind_gap_s: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m)
         self.speed_mps = speed_mps
@@ -214,10 +220,16 @@ class DescendTarget(ObjectTarget):
         self.crest_margin_m = crest_margin_m
         self.max_lead_m = max_lead_m
         self.final_max_speed_mps = final_max_speed_mps
+        self.blind_gap_s = blind_gap_s
         self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
         self.go_arounds = 0  # final descents given up for drifting off the object
         self.plunging = False  # in the final part, right over the object
+        self.blind_go_arounds = 0  # final descents given up for going blind off the object
+        self._committed = False  # this final descent went on blind, right over the object
+        self._fix_t_s: float | None = None  # the newest fix (its capture time) …
+        self._fix_seen_s = -math.inf  # … and when it was first seen here
         self._t_s: float | None = None
+        model.final_descent_given_up = False
 
     def final_height_now_m(self) -> float:
         return max(self.final_height_m, self.model.sea_level.crest_m() + self.crest_margin_m)
@@ -226,6 +238,9 @@ class DescendTarget(ObjectTarget):
         dt_s = 0.0 if self._t_s is None else max(0.0, t_s - self._t_s)
         self._t_s = t_s
         snap = self.model.snapshot(t_s)
+        fix_t_s = None if snap.fix_age_s is None else t_s - snap.fix_age_s
+        if fix_t_s is not None and (self._fix_t_s is None or abs(fix_t_s - self._fix_t_s) > FIX_TIME_TOLERANCE_S):
+            self._fix_t_s, self._fix_seen_s = fix_t_s, t_s
         # DESCEND was entered after ``converged_s`` of convergence; going on down needs a fresh fix and a
         # filter that is converged now
         good = snap.fix_age_s is not None and snap.fix_age_s <= self.fresh_s and snap.converged_for_s is not None
@@ -238,11 +253,21 @@ class DescendTarget(ObjectTarget):
             self.plunging = False
         elif self.height_m <= final_m:
             off_m, slip_mps = self._off_the_object(t_s)
+            over_it = off_m <= self.final_radius_m and slip_mps <= self.final_max_speed_mps
+            seeing = t_s - self._fix_seen_s <= self.blind_gap_s
+            if self.plunging and not self._committed and not seeing:
+                self._committed = over_it  # going blind: on only right over the object
+                if not over_it:
+                    self.plunging = False
+                    self.blind_go_arounds += 1
+                    self.model.final_descent_given_up = True
             if self.plunging and off_m > self.final_abort_radius_m:
                 self.plunging = False
                 self.go_arounds += 1
-            elif not self.plunging and off_m <= self.final_radius_m and slip_mps <= self.final_max_speed_mps:
-                self.plunging = True
+                self.model.final_descent_given_up = True
+            elif not self.plunging and over_it and seeing:  # (a stale estimate starts no final descent)
+                self.plunging, self._committed = True, False
+                self.model.final_descent_given_up = False
             if self.plunging:
                 self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
             else:

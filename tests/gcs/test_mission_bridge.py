@@ -91,8 +91,8 @@ async def test_with_a_ground_station_it_waits_on_the_ground_for_start_then_searc
         seen["commands"] = commands(vehicle)
         seen["early"] = [send(bridge, "hold", "h1"), send(bridge, "authorize_land", "a1")]
         seen["bad_start"] = send(bridge, "start", "s0", search_radius_m=2000.0)  # valid MQTT, not for the mission
-        seen["start"] = send(bridge, "start", "s1", start_ne_m=[32.0, 28.0])
-        seen["again_same_id"] = send(bridge, "start", "s1", start_ne_m=[32.0, 28.0])
+        seen["start"] = send(bridge, "start", "s1", start_ne_m=[47.0, 28.0])
+        seen["again_same_id"] = send(bridge, "start", "s1", start_ne_m=[47.0, 28.0])
         seen["again"] = send(bridge, "start", "s2")
         await until_state(bridge, "SEARCH", task)
         seen["at_search_ne"] = vehicle.truth().pos_ned_m[:2]
@@ -109,7 +109,7 @@ async def test_with_a_ground_station_it_waits_on_the_ground_for_start_then_searc
     assert not seen["again"].accepted and seen["again"].reason.startswith("already started")
     assert sum(1 for r in f.records if r.get("event") == "start_given") == 1
     n, e = seen["at_search_ne"]
-    assert abs(n - 32.0) < 1.5 and abs(e - 28.0) < 1.5  # the search began where the start command said
+    assert abs(n - 47.0) < 1.5 and abs(e - 28.0) < 1.5  # the search began where the start command said
     assert flight.result.outcome == "picked_up"
 
 

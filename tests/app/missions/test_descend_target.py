@@ -30,11 +30,13 @@ class Scene:
         self.vehicle_vel_ne = (0.0, 0.0)  # the object's estimate stands still
         self.vehicle_height_m = 4.0
         self.drift: tuple[tuple[float, float], tuple[float, float]] | None = None  # the filter's mean drift
+        self.last_fix_t_s: float | None = None  # None: a new fix (0.05 s old) every tick; else no fix since
 
     # -- what DescendTarget reads --
     def snapshot(self, t_s: float) -> Estimates:
+        age_s = 0.05 if self.last_fix_t_s is None else t_s - self.last_fix_t_s
         return Estimates(
-            t_s, fix_age_s=0.05, converged_for_s=5.0, height_above_sea_m=None,
+            t_s, fix_age_s=age_s, converged_for_s=5.0, height_above_sea_m=None,
             height_over_mean_sea_m=self.vehicle_height_m,
         )  # fmt: skip
 
@@ -97,6 +99,7 @@ def test_drifting_off_the_object_low_climbs_back_to_the_final_height():
     scene.vehicle_ne = (0.25, 0.0)  # past the abort radius: back up, and a go-around counted
     fly(target, scene, t_s, 0.1)
     assert not target.plunging and target.go_arounds == 1 and target.height_m == target.final_height_now_m()
+    assert scene.final_descent_given_up
 
 
 def test_off_the_object_on_the_way_down_it_holds_its_height_until_guidance_has_caught_up():
@@ -148,3 +151,48 @@ def test_verify_without_an_estimate_follows_where_the_objects_drift_takes_it():
     assert state.pos_ned_m == (2.0, -1.0, -3.0) and state.vel_ned_mps == (0.6, -0.3, 0.0)
     scene.drift = None  # the filter was reset: stays where the drift was last
     assert target.target_at(102.0).pos_ned_m == (2.0, -1.0, -3.0)
+
+
+@pytest.mark.parametrize("gap_s", [0.25, math.inf])
+def test_going_blind_low_it_goes_on_only_right_over_the_object_else_it_climbs_back_while_it_can_see(gap_s):
+    """The last half metre is flown blind: when the fixes stop (here 0.25 s without one), the final descent goes
+    on only within the final radius of the estimate; 0.15 m off (inside the abort radius) it climbs back to the
+    final height, and a stale estimate starts no new final descent. Without the check (gap ∞) it went on down."""
+    scene = Scene(crest_m=0.2)
+    target = descend(scene, blind_gap_s=gap_s)
+    t_s = fly(target, scene, 100.0, 7.0)  # over the object with fresh fixes: down through the final height
+    assert target.plunging and 0.0 < target.height_m < 0.9
+    scene.vehicle_ne = (0.15, 0.0)  # past the final radius, within the abort radius …
+    scene.last_fix_t_s = t_s - 0.05  # … as the camera loses the object
+    low_m = target.height_m
+    t_s = fly(target, scene, t_s, 0.2)  # not yet 0.25 s without a fix: on down
+    assert target.plunging and target.height_m < low_m
+    t_s = fly(target, scene, t_s, 0.1)
+    if gap_s == math.inf:
+        assert target.plunging and target.blind_go_arounds == 0 and target.height_m < low_m - 0.1
+        return
+    assert not target.plunging and target.blind_go_arounds == 1 and target.go_arounds == 0
+    assert scene.final_descent_given_up  # a crest that meets it now is no place to grab (the guards)
+    assert target.height_m == target.final_height_now_m()  # back up (fix age 0.35 s: still "fresh", 0.5 s)
+    scene.vehicle_ne = (0.05, 0.0)  # over the stale estimate again: no final descent on it
+    t_s = fly(target, scene, t_s, 0.1)
+    assert not target.plunging and target.height_m == target.final_height_now_m()
+    scene.last_fix_t_s = None  # the camera sees it again: down
+    fly(target, scene, t_s, 1.0)
+    assert target.plunging and target.height_m < target.final_height_now_m() - 0.4
+    assert not scene.final_descent_given_up
+
+
+def test_going_blind_right_over_the_object_it_goes_on_down_to_the_water():
+    scene = Scene(crest_m=0.2)
+    target = descend(scene, blind_gap_s=0.25)
+    t_s = fly(target, scene, 100.0, 7.0)
+    assert target.plunging
+    scene.vehicle_ne = (0.05, 0.0)  # within the final radius as the fixes stop: committed
+    scene.last_fix_t_s = t_s
+    t_s = fly(target, scene, t_s, 0.3)
+    assert target.plunging and target.blind_go_arounds == 0
+    scene.vehicle_ne = (0.15, 0.0)  # blind and committed: only the abort radius still counts
+    low_m = target.height_m
+    fly(target, scene, t_s, 0.15)
+    assert target.plunging and target.height_m < low_m

@@ -58,6 +58,15 @@ def test_at_the_water_with_a_stale_fix_is_no_grab():
     assert touchdown_off_target(ctx(est(**at_water, fix_age_s=fresh_s + 0.05)))
 
 
+def test_at_the_water_after_descend_gave_its_final_part_up_is_no_grab():
+    """DESCEND had given the final part up (drifted or gone blind off the object) and was climbing back when a
+    crest met it: right over the estimate and with a fresh fix, still no grab there."""
+    at_water = {"height_above_sea_m": 0.25}
+    assert not touchdown_off_target(ctx(est(**at_water, progress={"final_descent_given_up": 0.0})))
+    assert touchdown_off_target(ctx(est(**at_water, progress={"final_descent_given_up": 1.0})))
+    assert touchdown(ctx(est(**at_water, progress={"final_descent_given_up": 1.0})))  # it is at the water
+
+
 def test_in_the_gripper_only_after_looking_from_up_there_for_the_verify_time():
     def verify(up_for_s: float, fix_age_s: float | None = None, sighting_age_s: float = float("inf")):
         e = Estimates(

@@ -62,7 +62,9 @@ def assert_never_descends_low_without_a_fresh_fix(world: PickupWorld, p) -> None
 @pytest.mark.looptime(noop_cycles=2)
 async def test_calm_sea_pickup_goes_through_every_state_and_catches_the_object():
     wall0 = time.perf_counter()
-    flight, world, p = await fly_pickup(PickupScenario(seed=1, sea_state=0, current_mps=0.1), WindConfig.off())
+    # the object 15 m past where the search starts: found in SEARCH (from 15 m the camera sees 14 m × 19 m of sea)
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1, object_start_ne_m=(55.0, 20.0))
+    flight, world, p = await fly_pickup(scenario, WindConfig.off())
     wall_s = time.perf_counter() - wall0
     out = world.outcome
     print(f"{flight.result.states_visited}; {flight.duration_s:.0f} s of mission in {wall_s:.1f} s")
@@ -150,6 +152,8 @@ async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_
     the marker, or a plain 0.15 m buoy (fixed from its centre, its size checked as a sphere's)."""
     scenario = PickupScenario(seed=seed, sea_state=2, current_mps=0.3, object_kind=kind)
     settings = load_settings()
+    if kind == "buoy":  # the buoy detector, as ``app.main --object buoy`` (it also sets the search's height)
+        settings = settings.model_copy(update={"detector": settings.detector.model_copy(update={"kind": "buoy"})})
     vehicle = InProcessVehicle(seed=seed, wind=WindConfig())
     world = PickupWorld(vehicle, scenario, settings)
     runners: list = []
@@ -222,8 +226,9 @@ async def test_the_search_drifts_with_the_forecast_current_and_finds_an_object_i
     """A 0.9 m/s current carries the object ~35 m from where it was reported before the vehicle gets there (and
     farther while it searches): a search standing on the report never sees it; one drifting with the forecast
     current (here 10 % slow and 10° off) finds it and picks it up."""
-    to_rad = math.radians(70.0)
-    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.9, current_to_deg=60.0)
+    # towards the south-east: the object stays well inside the 100 m geofence while the vehicle catches it
+    to_rad = math.radians(160.0)
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.9, current_to_deg=150.0)
     forecast = (0.81 * math.cos(to_rad), 0.81 * math.sin(to_rad))
     drifting, world, _ = await fly_pickup(scenario, WindConfig.off(), search_drift_ne_mps=forecast)
     print(drifting.result.states_visited, world.outcome.grabs)

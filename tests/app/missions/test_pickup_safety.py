@@ -20,7 +20,7 @@ from sim.wind import WindConfig
 from tests.app.missions.test_preemption import assert_zero_then_hold, mode_commands, setpoints
 
 LOOPTIME = pytest.mark.looptime(noop_cycles=2)
-CALM = {"sea_state": 0, "current_mps": 0.1}
+CALM = {"sea_state": 0, "current_mps": 0.1, "object_start_ne_m": (55.0, 20.0)}  # 15 m past where the search starts
 OFFBOARD_STATES = [
     "CALIBRATE_RADAR",
     "GOTO_SEARCH",
