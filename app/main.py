@@ -25,6 +25,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -125,13 +126,24 @@ def ground_settings(settings: Settings, args: argparse.Namespace) -> GcsSettings
     return GcsSettings.from_mapping(section, "gcs", "--mqtt" if args.mqtt is not None else "settings")
 
 
-def _simulator_child() -> None:
-    """In the simulator's process before it starts: a lower priority, and dying with the app — even when the app
-    is killed outright (SIGKILL), a simulator left behind would fly on and eat CPU (Linux: PR_SET_PDEATHSIG)."""
-    os.nice(SIM_NICE)
+def _simulator_child_setup() -> Callable[[], None]:
+    """What runs in the simulator's process before it starts: a lower priority, and dying with the app — even when
+    the app is killed outright (SIGKILL), a simulator left behind would fly on and eat CPU (Linux:
+    PR_SET_PDEATHSIG; the simulator also watches its parent, ``--parent-pid``). libc is looked up here, in the app:
+    ``find_library`` runs ``ldconfig`` in a subprocess, which has no place between fork and exec."""
+    prctl: Callable[..., int] | None = None
     with contextlib.suppress(OSError, AttributeError):
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        prctl = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True).prctl
+    app_pid = os.getpid()
+
+    def child() -> None:
+        os.nice(SIM_NICE)
+        if prctl is not None:
+            prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != app_pid:  # the app died before the signal was armed
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    return child
 
 
 def free_udp_port() -> int:
@@ -164,6 +176,7 @@ def start_simulator(
         "--seed", str(args.seed),
         "--profile", args.sim_profile,
         "--state-log", str(run_dir / "sim_state.jsonl"),
+        "--parent-pid", str(os.getpid()),
     ]  # fmt: skip
     if args.no_wind:
         cmd.append("--no-wind")
@@ -179,7 +192,7 @@ def start_simulator(
     log = (run_dir / "sim.log").open("wb")
     # The simulator stands in for other hardware (the autopilot, the camera, the radar) that does not share the
     # companion computer's CPU: it runs at a lower priority, so the app's setpoint loop is not queued behind it.
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_simulator_child)
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_simulator_child_setup())
     return proc, f"udpin://0.0.0.0:{port}"
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import signal
 import threading
 from pathlib import Path
@@ -99,6 +100,10 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--state-log", default=None, help="JSON-lines state log file")
     ap.add_argument("--home", type=_home, default=None, help="LAT,LON,ALT (deg, deg, m AMSL)")
     ap.add_argument("--param", type=_param, action="append", default=[], help="NAME=VALUE parameter override")
+    ap.add_argument(
+        "--parent-pid", type=number(1, 2**22, "", int), default=None,
+        help="stop when this process is no longer the parent (it died: app.main's child)",
+    )  # fmt: skip
     world = ap.add_argument_group("the pickup's world (sim.pickup_serve)")
     world.add_argument("--camera-socket", default=None, help="serve the camera here, e.g. unix:/tmp/cam.sock")
     world.add_argument("--radar-link", default=None, help="serve the X4M03 emulator's pty at this symlink")
@@ -167,6 +172,18 @@ def pickup_server(sim: SimAutopilot, args: argparse.Namespace) -> PickupServer |
     return PickupServer(sim, config, settings.camera, detector)
 
 
+PARENT_POLL_S = 0.2
+
+
+def _watch_parent(parent_pid: int, stop: threading.Event) -> None:
+    """Stop once ``parent_pid`` is no longer the parent: it died (re-parented to init), whether or not the
+    parent-death signal came."""
+    while not stop.wait(PARENT_POLL_S):
+        if os.getppid() != parent_pid:
+            print(f"sim.autopilot: parent {parent_pid} is gone, stopping", flush=True)
+            stop.set()
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parse_args(argv)
     config = config_from_args(args)
@@ -181,6 +198,8 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, _on_signal)
     signal.signal(signal.SIGTERM, _on_signal)
+    if args.parent_pid is not None:
+        threading.Thread(target=_watch_parent, args=(args.parent_pid, stop), name="parent", daemon=True).start()
     host, port = config.target
     pilot_port = sim.pilot_address[1] if sim.pilot_address else 0
     print(f"sim.autopilot: sending to {host}:{port}, pilot port {pilot_port}", flush=True)

@@ -53,3 +53,20 @@ def test_autopilot_cli_takes_a_pilot_switch_logs_it_and_exits_cleanly(tmp_path: 
     truths = [r for r in records if r["event"] == "truth"]
     assert truths and {"t_wall", "pos_ned_m", "vel_ned_mps", "mode", "armed"} <= truths[-1].keys()
     assert truths[-1]["mode"] == "POSCTL"
+
+
+def test_autopilot_cli_stops_when_its_parent_is_gone_even_without_the_parent_death_signal(tmp_path: Path) -> None:
+    """``--parent-pid``: app.main's simulator watches its parent; a parent that is gone (here: it never was — the
+    test is the real parent) stops it, cleanly, within a poll or two — a simulator left behind would fly on."""
+    port = free_udp_port()
+    state_log = tmp_path / "state.jsonl"
+    t0 = time.monotonic()
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.autopilot", "--udp", f"127.0.0.1:{port}", "--pilot-port", "0",
+         "--state-log", str(state_log), "--parent-pid", "1"],
+        cwd=ROOT, capture_output=True, text=True, timeout=30,
+    )  # fmt: skip
+    print(f"exited after {time.monotonic() - t0:.2f} s: {proc.stdout!r}")
+    assert proc.returncode == 0 and "parent 1 is gone, stopping" in proc.stdout
+    records = list(read_state_log(state_log))
+    assert records[0]["event"] == "start" and records[-1]["event"] == "stop"
