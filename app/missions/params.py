@@ -98,7 +98,7 @@ class MissionParams(BaseModel):
         "moving with it (final_max_speed_mps), else climb back to the final height; unset: no such check, s",
     )
     crest_margin_m: float = Field(
-        0.3, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
+        0.5, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
     )
     descend_max_lead_m: float = Field(
         0.5, ge=0.1, le=5.0, description="the desired height leads the vehicle's own down by at most this, m"
