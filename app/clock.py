@@ -8,9 +8,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ctypes
 import heapq
 import itertools
-import threading
+import math
+import os
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Protocol
 
 
@@ -43,48 +48,124 @@ class PreciseClock(LoopClock):
     """The loop's clock, with wakes that land on time: for the 50 Hz setpoint loop in real time only.
 
     asyncio's selector rounds every timeout *up* to whole milliseconds (epoll), so a timer-driven wake comes
-    0–1 ms late — a tenth of the setpoint period's jitter budget. Here a timer thread waits for the deadline
-    on a monotonic condition variable (microseconds) and wakes the loop through its self-pipe, which epoll
-    reports at once. The thread reads only the loop's clock. Not for virtual time: under looptime the loop's
-    time is not the thread's.
+    0–1 ms late — a tenth of the setpoint period's jitter budget. Here the kernel wakes the loop itself: one
+    timerfd (Linux), armed for the earliest deadline on the monotonic clock the loop reads, with nanosecond
+    resolution, is one more file the loop's epoll watches. No thread is involved (a timer thread, as before,
+    must win a core and the GIL before it can wake the loop: under load those wakes came late). Where there is
+    no timerfd, it sleeps as ``LoopClock`` does. Not for virtual time: under looptime the loop's time is not
+    the kernel's.
     """
 
     def __init__(self) -> None:
-        self._cond = threading.Condition()
-        self._pending: list[tuple[float, int, asyncio.Future[None], asyncio.AbstractEventLoop]] = []
+        self._pending: list[tuple[float, int, asyncio.Future[None]]] = []
         self._count = itertools.count()
-        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._fd = -1
 
     async def sleep(self, dt_s: float) -> None:
         if dt_s <= 0.0:
             await asyncio.sleep(0)
             return
         loop = asyncio.get_running_loop()
+        if not self._attach(loop):
+            await asyncio.sleep(dt_s)
+            return
         fut: asyncio.Future[None] = loop.create_future()
-        with self._cond:
-            heapq.heappush(self._pending, (loop.time() + dt_s, next(self._count), fut, loop))
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._run, name="clock.precise", daemon=True)
-                self._thread.start()
-            self._cond.notify()
-        await fut  # cancelling it is enough: the thread then skips it
+        deadline_s = loop.time() + dt_s
+        heapq.heappush(self._pending, (deadline_s, next(self._count), fut))
+        if self._pending[0][2] is fut:
+            self._arm(deadline_s)
+        await fut  # cancelling it is enough: the timer then skips it
 
-    def _run(self) -> None:
-        with self._cond:
-            while True:
-                if not self._pending:
-                    self._cond.wait()
-                    continue
-                deadline_s, _, fut, loop = self._pending[0]
-                remaining_s = deadline_s - loop.time()
-                if remaining_s > 0.0:
-                    self._cond.wait(remaining_s)
-                    continue
-                heapq.heappop(self._pending)
-                with contextlib.suppress(RuntimeError):  # the loop has closed
-                    loop.call_soon_threadsafe(_wake, fut)
+    def close(self) -> None:
+        if self._fd >= 0:
+            if self._loop is not None and not self._loop.is_closed():
+                self._loop.remove_reader(self._fd)
+            os.close(self._fd)
+        self._fd, self._loop, self._pending = -1, None, []
+
+    def _attach(self, loop: asyncio.AbstractEventLoop) -> bool:
+        if self._loop is loop:
+            return self._fd >= 0
+        self.close()
+        self._loop = loop
+        if _TIMERFD is not None:
+            fd = _TIMERFD.create(_CLOCK_MONOTONIC, _TFD_NONBLOCK | _TFD_CLOEXEC)
+            if fd >= 0:
+                self._fd = fd
+                loop.add_reader(fd, self._on_timer)
+        return self._fd >= 0
+
+    def _arm(self, deadline_s: float) -> None:
+        sec = math.floor(deadline_s)
+        nsec = min(999_999_999, math.ceil((deadline_s - sec) * 1e9))  # never before the deadline
+        spec = _Itimerspec(_Timespec(0, 0), _Timespec(sec, nsec))
+        if _TIMERFD is None or _TIMERFD.settime(self._fd, _TFD_TIMER_ABSTIME, ctypes.byref(spec), None) != 0:
+            raise OSError(ctypes.get_errno(), "timerfd_settime failed")
+
+    def _on_timer(self) -> None:
+        with contextlib.suppress(BlockingIOError):
+            os.read(self._fd, 8)
+        assert self._loop is not None
+        now_s = self._loop.time()
+        while self._pending and (self._pending[0][0] <= now_s or self._pending[0][2].done()):
+            fut = heapq.heappop(self._pending)[2]
+            if not fut.done():
+                fut.set_result(None)
+        if self._pending:
+            self._arm(self._pending[0][0])
 
 
-def _wake(fut: asyncio.Future[None]) -> None:
-    if not fut.done():
-        fut.set_result(None)
+@contextlib.contextmanager
+def realtime_thread(priority: int) -> Iterator[str]:
+    """Run the calling thread — the event loop's, which wakes the setpoint loop — under SCHED_FIFO at
+    ``priority`` (as PX4 runs its tasks on Linux) while the block runs, so another process busy on both cores
+    cannot queue it; every thread and process it starts meanwhile (gRPC's, the detector's, the simulator)
+    starts at normal scheduling (SCHED_RESET_ON_FORK). Needs CAP_SYS_NICE or an RLIMIT_RTPRIO of at least
+    ``priority`` (``ulimit -r``); refused, the thread stays as it was. Yields what it got, for the summary."""
+    if priority <= 0 or not hasattr(os, "SCHED_RESET_ON_FORK"):
+        yield "normal" if priority <= 0 else "normal (no SCHED_FIFO here)"
+        return
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(priority))
+    except OSError as e:
+        yield f"normal (SCHED_FIFO {priority} refused: {e.strerror})"
+        return
+    try:
+        yield f"SCHED_FIFO {priority}"
+    finally:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+
+
+# Linux timerfd through libc (os.timerfd_* arrive with Python 3.13)
+_CLOCK_MONOTONIC = 1  # what time.monotonic() and so the loop read
+_TFD_NONBLOCK = os.O_NONBLOCK
+_TFD_CLOEXEC = os.O_CLOEXEC
+_TFD_TIMER_ABSTIME = 1
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+class _Itimerspec(ctypes.Structure):
+    _fields_ = [("it_interval", _Timespec), ("it_value", _Timespec)]
+
+
+@dataclass(frozen=True)
+class _Timerfd:
+    create: Callable[..., int]
+    settime: Callable[..., int]
+
+
+def _load_timerfd() -> _Timerfd | None:
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return _Timerfd(libc.timerfd_create, libc.timerfd_settime)
+    except (OSError, AttributeError):
+        return None
+
+
+_TIMERFD = _load_timerfd()

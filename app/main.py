@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from app.cli import OneLineParser, number, run_cli
-from app.clock import Clock, PreciseClock
+from app.clock import Clock, PreciseClock, realtime_thread
 from app.errors import AppError, ConfigError
 from app.eventlog import EventLog
 from app.flight import Flight, fly_mission
@@ -209,10 +209,15 @@ async def connect_and_fly(
 
     route_mavsdk_log(run_dir / "mavsdk.log")
     clock = PreciseClock()  # real time: wakes on time (the 50 Hz setpoints), not up to 1 ms late
-    pickup = model_name(table) == "pickup"
-    sensors = pickup_sensors(settings, clock, sim_sensors, SensorLogs.into(run_dir, events)) if pickup else []
-    async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
-        return await fly_mission(vehicle, table, settings, clock, events, sensors=sensors, ground=ground)
+    with realtime_thread(settings.guidance.realtime_priority) as scheduling:  # before the threads start here
+        events.write(clock.now_s(), "loop_scheduling", policy=scheduling)
+        pickup = model_name(table) == "pickup"
+        sensors = pickup_sensors(settings, clock, sim_sensors, SensorLogs.into(run_dir, events)) if pickup else []
+        async with MavsdkVehicle.connect(url, clock, events, settings.connection, settings.telemetry) as vehicle:
+            flight = await fly_mission(vehicle, table, settings, clock, events, sensors=sensors, ground=ground)
+    clock.close()
+    flight.timing["loop_scheduling"] = scheduling
+    return flight
 
 
 @dataclass(frozen=True)

@@ -128,6 +128,13 @@ class GuidanceSettings(_Model):
         "shortened by a higher shaping jerk limit)",
     )
     setpoint_rate_hz: float = Field(50.0, ge=20.0, le=100.0, description="offboard setpoint loop rate, Hz")
+    realtime_priority: int = Field(
+        10,
+        ge=0,
+        le=99,
+        description="SCHED_FIFO priority of the event loop's thread, which wakes the setpoint loop (Linux; needs "
+        "CAP_SYS_NICE or ulimit -r; refused: normal scheduling, said in the summary); 0: normal scheduling",
+    )
     exit_zero_s: float = Field(
         0.5, ge=0.05, le=5.0, description="leaving offboard on our own account: zero velocity this long, then HOLD, s"
     )

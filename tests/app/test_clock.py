@@ -1,13 +1,18 @@
-"""``PreciseClock``: real-time sleeps woken by a timer thread instead of epoll's whole-millisecond timeout."""
+"""``PreciseClock``: real-time sleeps woken by a timerfd instead of epoll's whole-millisecond timeout;
+``realtime_thread``: the event loop's thread under SCHED_FIFO, the threads it starts not."""
 
 from __future__ import annotations
 
 import asyncio
+import os
 import statistics
+import subprocess
+import sys
+import threading
 
 import pytest
 
-from app.clock import LoopClock, PreciseClock, sleep_until
+from app.clock import LoopClock, PreciseClock, realtime_thread, sleep_until
 
 
 async def _lateness_ms(clock, n: int = 40, period_s: float = 0.02) -> list[float]:
@@ -64,3 +69,52 @@ async def test_it_sleeps_at_least_as_long_as_asked(dt_s):
     t0 = loop.time()
     await clock.sleep(dt_s)
     assert loop.time() - t0 >= dt_s
+
+
+async def test_no_thread_is_started_and_close_releases_the_timer():
+    clock = PreciseClock()
+    before = threading.active_count()
+    await clock.sleep(0.002)
+    await clock.sleep(0.002)
+    assert threading.active_count() == before  # the kernel wakes the loop: no timer thread
+    fd = clock._fd
+    assert fd >= 0 and os.readlink(f"/proc/self/fd/{fd}") == "anon_inode:[timerfd]"
+    clock.close()
+    with pytest.raises(FileNotFoundError):  # closed
+        os.readlink(f"/proc/self/fd/{fd}")
+    await clock.sleep(0.002)  # usable again: a new timer
+    clock.close()
+
+
+def test_the_loop_thread_runs_sched_fifo_inside_the_block_and_threads_it_starts_do_not():
+    seen: dict[str, int] = {}
+
+    def worker() -> None:
+        seen["thread"] = os.sched_getscheduler(0)
+
+    with realtime_thread(10) as policy:
+        inside = os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK
+        t = threading.Thread(target=worker)
+        t.start()
+        t.join()
+        child = subprocess.run(
+            [sys.executable, "-c", "import os; print(os.sched_getscheduler(0))"], capture_output=True, text=True
+        )
+    print(f"policy: {policy}")
+    if policy.startswith("normal"):  # refused on this machine: nothing changed
+        assert "refused" in policy and inside == os.SCHED_OTHER
+    else:
+        assert policy == "SCHED_FIFO 10" and inside == os.SCHED_FIFO
+    assert seen["thread"] == os.SCHED_OTHER and int(child.stdout) == os.SCHED_OTHER
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER  # and back to normal after it
+
+
+def test_priority_zero_changes_nothing():
+    with realtime_thread(0) as policy:
+        assert policy == "normal" and os.sched_getscheduler(0) == os.SCHED_OTHER
+
+
+def test_refused_it_says_so_and_the_thread_stays_at_normal_scheduling():
+    with realtime_thread(100) as policy:  # above SCHED_FIFO's 99: the kernel refuses it, as it does without privilege
+        assert policy.startswith("normal (SCHED_FIFO 100 refused: ") and os.sched_getscheduler(0) == os.SCHED_OTHER
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER
