@@ -120,7 +120,7 @@ class PreciseClock(LoopClock):
 def realtime_thread(priority: int) -> Iterator[str]:
     """Run the calling thread — the event loop's, which wakes the setpoint loop — under SCHED_FIFO at
     ``priority`` (as PX4 runs its tasks on Linux) while the block runs, so another process busy on both cores
-    cannot queue it; every thread and process it starts meanwhile (gRPC's, the detector's, the simulator)
+    cannot queue it; every thread and process it starts meanwhile (MAVSDK's, the detector's, the simulator)
     starts at normal scheduling (SCHED_RESET_ON_FORK). Needs CAP_SYS_NICE or an RLIMIT_RTPRIO of at least
     ``priority`` (``ulimit -r``); refused, the thread stays as it was. Yields what it got, for the summary."""
     if priority <= 0 or not hasattr(os, "SCHED_RESET_ON_FORK"):
@@ -138,7 +138,7 @@ def realtime_thread(priority: int) -> Iterator[str]:
 
 
 # Linux timerfd through libc (os.timerfd_* arrive with Python 3.13)
-_CLOCK_MONOTONIC = 1  # what time.monotonic() and so the loop read
+_CLOCK_MONOTONIC = 1  # the kernel clock behind asyncio loop.time()
 _TFD_NONBLOCK = os.O_NONBLOCK
 _TFD_CLOEXEC = os.O_CLOEXEC
 _TFD_TIMER_ABSTIME = 1
