@@ -11,17 +11,21 @@ that. ``number`` is an argparse type that refuses non-numbers, NaN/inf and value
 naming the range. ``run_cli`` runs ``main`` and turns the errors bad input raises on the way — a file
 that cannot be read or written (``OSError``), an invalid file (``AppError``, e.g. ``ConfigError``), a
 value no parser caught (``ValueError``) — into that one line and exit status 2, never a traceback;
-output piped into ``head`` stops quietly.
+output piped into ``head`` stops quietly. ``handle_signals_in_thread`` runs what a signal should do in a
+thread of its own, never inside the signal handler.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
+import signal
 import subprocess
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import NoReturn
 
@@ -90,3 +94,30 @@ def run_cli(main: Callable[[], int], prog: str) -> int:
     except (AppError, OSError, ValueError) as e:
         print(f"{prog}: error: {one_line(e)}", file=sys.stderr)
         return BAD_INPUT
+
+
+def handle_signals_in_thread(handlers: Mapping[signal.Signals, Callable[[], None]]) -> None:
+    """On each of ``handlers``' signals, run its handler in a thread of its own (``signals``), not in the handler.
+
+    A Python signal handler runs in the main thread between two bytecodes, wherever that thread is: also while it
+    holds a lock, and also inside the same handler when the signal comes again. A handler that takes a lock
+    (``Event.set`` does) can then wait forever for itself. It happened: Linux sends a child its parent-death signal
+    once for every thread of the dying parent (the child is handed from thread to thread), and a simulator whose
+    app was killed outright hung in ``Event.set`` four handlers deep. The handler here only writes the signal's
+    number to a pipe (a system call, no lock); the thread reads it and calls the handler. Call from the main thread.
+    """
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+
+    def on_signal(signum: int, frame: object) -> None:
+        with contextlib.suppress(BlockingIOError):  # the pipe is full: the thread has plenty to do already
+            os.write(write_fd, bytes([signum]))
+
+    def dispatch() -> None:
+        while data := os.read(read_fd, 64):
+            for signum in data:
+                handlers[signal.Signals(signum)]()
+
+    threading.Thread(target=dispatch, name="signals", daemon=True).start()
+    for signum in handlers:
+        signal.signal(signum, on_signal)

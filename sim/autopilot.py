@@ -31,9 +31,8 @@ import os
 import signal
 import threading
 from pathlib import Path
-from types import FrameType
 
-from app.cli import OneLineParser, number, run_cli
+from app.cli import OneLineParser, handle_signals_in_thread, number, run_cli
 from app.settings import load_settings
 from sim.airframes import SIM_PROFILES
 from sim.autopilot_endpoint import SimAutopilot, SimConfig
@@ -192,12 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     if world is not None:
         world.start()
     stop = threading.Event()
-
-    def _on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, _on_signal)
-    signal.signal(signal.SIGTERM, _on_signal)
+    handle_signals_in_thread({signal.SIGINT: stop.set, signal.SIGTERM: stop.set})
     if args.parent_pid is not None:
         threading.Thread(target=_watch_parent, args=(args.parent_pid, stop), name="parent", daemon=True).start()
     host, port = config.target

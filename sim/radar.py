@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from app.cli import OneLineParser, number, run_cli
+from app.cli import OneLineParser, handle_signals_in_thread, number, run_cli
 from app.messages import RangeAxis
 from sim.radar_firmware import FirmwareConfig, FirmwareFaults, X4M03Firmware
 from sim.radar_signal import RadarSignalConfig, SeaRadarScene
@@ -247,16 +247,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     done = threading.Event()
 
-    def toggle_plug(*_: object) -> None:
+    def toggle_plug() -> None:
         emulator.unplug() if emulator.plugged else emulator.replug()
         print(json.dumps({"plugged": emulator.plugged}), flush=True)
 
-    def corrupt_next(*_: object) -> None:
+    def corrupt_next() -> None:
         emulator.faults().corrupt_next_commands += 1
 
-    signal.signal(signal.SIGUSR1, toggle_plug)
-    signal.signal(signal.SIGUSR2, corrupt_next)
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    handle_signals_in_thread({signal.SIGUSR1: toggle_plug, signal.SIGUSR2: corrupt_next, signal.SIGTERM: done.set})
     print(emulator.start(), flush=True)
     try:
         done.wait(args.duration_s if args.duration_s > 0 else None)
