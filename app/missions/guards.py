@@ -137,6 +137,12 @@ def target_lost(ctx: GuardContext) -> bool:
     return e.target is None or e.fix_age_s is None or e.fix_age_s > ctx.params.target_lost_s
 
 
+def target_lost_finally(ctx: GuardContext) -> bool:
+    """Lost again after ``search_retries`` searches around the last estimate: give up (PX4's PLD_MAX_SRCH,
+    ArduPilot's PLND_RET_MAX) rather than search until the battery's budget is spent."""
+    return target_lost(ctx) and ctx.estimates.progress.get("searches_after_loss", 0.0) >= ctx.params.search_retries
+
+
 def touchdown(ctx: GuardContext) -> bool:
     """On the water: the radar reads the touchdown height, or the vehicle is that low over the mean sea (under the
     radar's first range it reads nothing), or the autopilot says landed."""
@@ -269,6 +275,7 @@ GUARDS: dict[str, Guard] = {
         above_object,
         ready_to_descend,
         target_lost,
+        target_lost_finally,
         touchdown,
         grab_settled,
         grab_failed,

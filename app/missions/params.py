@@ -131,5 +131,12 @@ class MissionParams(BaseModel):
         2.0, ge=0.5, le=30.0, description="no fix of the object on the sea for this long = it is in the gripper, s"
     )
     grab_retries: int = Field(2, ge=0, le=10, description="grabs after a failed one before giving up, count")
+    search_retries: int = Field(
+        10,
+        ge=0,
+        le=100,
+        description="searches around the last estimate after losing the object, before giving up and returning "
+        "(PX4 PLD_MAX_SRCH, ArduPilot PLND_RET_MAX), count",
+    )
     lift_altitude_m: float = Field(5.0, ge=1.0, le=60.0, description="climb to this above home after the grab, m")
     return_altitude_m: float = Field(10.0, ge=2.0, le=60.0, description="fly home at this height above home, m")

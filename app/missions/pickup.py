@@ -177,6 +177,7 @@ class PickupEstimates:
         self.fix_log: deque[tuple[float, float, float, str]] = deque(maxlen=1000)
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
+        self.searches_after_loss = 0  # SEARCH begun around the last estimate of an object seen and lost
         self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
         self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
         self.verify_up_t_s: float | None = None  # after the grab, up at the verify height since
@@ -207,9 +208,11 @@ class PickupEstimates:
         return n + vn * dt_s, e + ve * dt_s
 
     def restart_search_at_last_estimate(self) -> None:
+        """Centre the search on the object's last estimate (when it was seen), and count that search."""
         if self.last_estimate_ne_m is not None:
             self.search_centre_ne_m = self.last_estimate_ne_m
             self.datum_t_s = self.last_estimate_t_s
+            self.searches_after_loss += 1
 
     # ---- inputs -------------------------------------------------------------------------------
 
@@ -461,6 +464,7 @@ class PickupEstimates:
             "search_centre_e_m": centre_e_m,
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
             "grab_attempts": float(self.grab_attempts),
+            "searches_after_loss": float(self.searches_after_loss),
             "grab_sighting_age_s": math.inf if self._grab_sighting_t_s is None else t_s - self._grab_sighting_t_s,
             "verify_up_for_s": -1.0 if self.verify_up_t_s is None else t_s - self.verify_up_t_s,
             "picked_up": 1.0 if self.picked_up else 0.0,
@@ -488,6 +492,7 @@ class PickupEstimates:
             "picked_up": self.picked_up,
             "grab_attempts": self.grab_attempts,
             "retries": max(0, self.grab_attempts - 1),
+            "searches_after_loss": self.searches_after_loss,
             "fixes": self.fixes,
             "fixes_rejected": dict(self.rejected),
             "radar_calibration": self.radar_calibration,

@@ -314,3 +314,41 @@ async def test_a_resume_that_comes_while_hold_is_still_leaving_offboard_takes_of
     modes = [r["mode"] for r in vehicle.records if r["event"] == "mode" and 0 <= r["t_s"] - seen["resume_s"] <= 4.0]
     assert modes == ["HOLD", "OFFBOARD"], modes  # the hold's HOLD went out after the resume, then offboard again
     assert flight.result.outcome == "picked_up" and world.outcome.caught
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_an_object_lost_again_after_search_retries_searches_is_given_up_and_the_vehicle_comes_home():
+    """The camera goes blind every time the vehicle is over the object (TRACK) and sees again once it searches:
+    two searches around the last estimate (``search_retries`` 2), and the third loss goes home instead of
+    searching — as PX4's PLD_MAX_SRCH and ArduPilot's PLND_RET_MAX bound precision landing's retries."""
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
+    events = EventLog(None)
+    states: list[dict] = []
+    events.subscribe(["state"], states.append)
+    world_box: list[PickupWorld] = []
+
+    async def blind_while_tracking() -> None:
+        while True:
+            state = states[-1]["to"] if states else ""
+            if world_box:
+                world_box[0].camera_blind = state == "TRACK"
+            await asyncio.sleep(0.05)  # polls the mission's state: nothing to wait on
+
+    watcher = asyncio.create_task(blind_while_tracking())
+    settings = load_settings()
+    vehicle = InProcessVehicle(seed=scenario.seed, wind=WindConfig.off())
+    world = PickupWorld(vehicle, scenario, settings)
+    world_box.append(world)
+    table = load_mission("pickup")
+    table = table.model_copy(update={"params": table.params.model_copy(update={"search_retries": 2})})
+    flight = await fly_mission(vehicle, table, settings, LoopClock(), events, sensors=[world.sensors])
+    watcher.cancel()
+    moves = [(round(r["t_s"], 1), r["from"], r["to"], r["reason"]) for r in states]
+    print(moves, flight.figures.get("searches_after_loss"))
+    lost = [m for m in moves if m[3] in ("target_lost", "target_lost_finally") and m[1] == "TRACK"]
+    assert [m[2:] for m in lost] == [("SEARCH", "target_lost")] * 2 + [("RETURN", "target_lost_finally")]
+    assert flight.figures["searches_after_loss"] == 2
+    assert flight.result.outcome == "failed" and flight.result.final_state == "RETURNED_EMPTY"
+    assert world.outcome.grabs == []  # never went down onto it
+    truth = vehicle.truth()
+    assert not truth.armed and math.hypot(truth.pos_ned_m[0], truth.pos_ned_m[1]) < 2.0  # landed at home
