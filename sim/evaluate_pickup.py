@@ -46,7 +46,7 @@ from sim.estimator import ESTIMATORS
 from sim.faults import limits_of
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import EvalPickupWorld
-from sim.pickup_scenarios import CONFIGS, EvalConfig
+from sim.pickup_scenarios import CONFIGS, CV_TUNED_Q, EvalConfig
 from sim.pickup_world import PickupScenario
 from sim.safety_rules import RunFacts, check
 from sim.virtual_loop import VirtualTimeLoop
@@ -156,11 +156,7 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: 
     )
     world = EvalPickupWorld(vehicle, scenario, settings, sc["clutter"], cfg.full_frame_detection)
     table = inputs.table
-    params = {"target_filter": cfg.target_filter, "sea_state": sc["sea_state"], "search_start_ne_m": start_ne_m}
-    if "drift_forecast_ne_mps" in sc:  # results.jsonl lines written before the forecast existed have none
-        drift = sc["drift_forecast_ne_mps"]
-        params["search_drift_ne_mps"] = (float(drift[0]), float(drift[1]))
-    table = table.model_copy(update={"params": table.params.model_copy(update=params)})
+    table = table.model_copy(update={"params": table.params.model_copy(update=mission_params(sc, cfg))})
     clock = LoopClock()
     events = EventLog(run_dir / "events.jsonl" if run_dir is not None else None)
     states: list[dict[str, Any]] = []
@@ -211,6 +207,25 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: 
 
 
 SAME_TOUCHDOWN_S = 2.0  # a grab and a contact with the water this close in time are one touchdown
+
+
+def mission_params(sc: dict[str, Any], cfg: EvalConfig) -> dict[str, Any]:
+    """What a scenario and a configuration change in the mission's parameters: the target filter and what it is
+    told of the sea (the wave filter its sea state, the constant-velocity filter the Q tuned for it), where the
+    object was reported and the forecast drift."""
+    start_ne_m = (float(sc["object_start_ne_m"][0]), float(sc["object_start_ne_m"][1]))
+    params: dict[str, Any] = {
+        "target_filter": cfg.target_filter,
+        "innovation_gate": cfg.innovation_gate,
+        "sea_state": sc["sea_state"],
+        "search_start_ne_m": start_ne_m,
+    }
+    if cfg.target_filter == "constant_velocity":
+        params["cv_q_pos_m2ps"], params["cv_q_vel_m2ps3"] = CV_TUNED_Q[sc["sea_state"]]
+    if "drift_forecast_ne_mps" in sc:  # results.jsonl lines written before the forecast existed have none
+        drift = sc["drift_forecast_ne_mps"]
+        params["search_drift_ne_mps"] = (float(drift[0]), float(drift[1]))
+    return params
 
 
 def _off_target_touchdowns(grabs: Sequence[dict[str, Any]], contacts: Sequence[dict[str, Any]], radius_m: float) -> int:

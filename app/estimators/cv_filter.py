@@ -11,6 +11,8 @@ Listing 4.1 per step: P⁻ = F P Fᵀ + Q;  S = R + H P⁻ Hᵀ;  K = P⁻ Hᵀ 
 A step without a fix is prediction only (the thesis's H = 0). One deliberate difference: Listing 4.1
 writes the innovation as z − H x with the *previous* x; here it is z − H F x (the predicted state, as in
 every textbook Kalman filter). The two agree whenever the velocity is zero — as on the first update.
+The innovation gate of ``LinearTargetFilter`` is on by default; the thesis had none (``innovation_gate=False``
+reproduces Listing 4.1, which fuses every fix).
 """
 
 from __future__ import annotations
@@ -30,8 +32,9 @@ class ConstantVelocityFilter(LinearTargetFilter):
         initial_vel_std_mps: float = 1.0,
         timeout_s: float = 3.0,
         replay_window_s: float = 1.0,
+        innovation_gate: bool = True,
     ) -> None:
-        super().__init__(timeout_s, replay_window_s)
+        super().__init__(timeout_s, replay_window_s, innovation_gate)
         self.q_pos_m2ps = q_pos_m2ps
         self.q_vel_m2ps3 = q_vel_m2ps3
         self.initial_vel_std_mps = initial_vel_std_mps

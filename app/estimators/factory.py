@@ -17,7 +17,9 @@ TargetFilterKind = Literal["constant_velocity", "wave"]
 
 
 class TargetFilterChoice(Protocol):
-    """Which motion model to run, and for the wave filter the expected WMO sea state (code 0–5)."""
+    """Which motion model to run: for the wave filter the expected WMO sea state (code 0–5), for the
+    constant-velocity filter its process noise (the thesis set Q from configuration parameters); and whether the
+    innovation gate rejects outliers."""
 
     @property
     def target_filter(self) -> TargetFilterKind: ...
@@ -25,9 +27,19 @@ class TargetFilterChoice(Protocol):
     @property
     def sea_state(self) -> int: ...
 
+    @property
+    def cv_q_pos_m2ps(self) -> float: ...
+
+    @property
+    def cv_q_vel_m2ps3(self) -> float: ...
+
+    @property
+    def innovation_gate(self) -> bool: ...
+
 
 def make_target_filter(choice: TargetFilterChoice) -> LinearTargetFilter:
     if choice.target_filter == "constant_velocity":
-        return ConstantVelocityFilter()
+        gate = choice.innovation_gate
+        return ConstantVelocityFilter(choice.cv_q_pos_m2ps, choice.cv_q_vel_m2ps3, innovation_gate=gate)
     sea = SEA_STATES[choice.sea_state]
-    return WaveFilter(sea.hs_m, sea.tp_s)
+    return WaveFilter(sea.hs_m, sea.tp_s, innovation_gate=choice.innovation_gate)

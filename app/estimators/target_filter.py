@@ -9,9 +9,10 @@ this base does the rest, the same way for every model:
 - **Late fixes** (capture time before the last fused one, within ``replay_window_s``) are fused in order:
   the filter rolls back to the checkpoint before them and replays the later fixes. Older ones are dropped
   and counted.
-- **Innovation gate**: NIS = yᵀS⁻¹y > ``NIS_GATE_2DOF`` rejects a fix (false detections); the
-  ``OUTLIER_ESCAPE_COUNT``-th consecutive rejection re-initialises the filter on it (the object really
-  moved, as AC_PrecLand's outlier escape).
+- **Innovation gate** (``innovation_gate``, on unless a baseline turns it off): NIS = yᵀS⁻¹y > ``NIS_GATE_2DOF``
+  rejects a fix (false detections); the ``OUTLIER_ESCAPE_COUNT``-th consecutive rejection re-initialises the
+  filter on it (the object really moved, as AC_PrecLand's outlier escape). Off, every fix is fused, as the
+  thesis's Listing 4.1 does; the NIS is still computed and returned.
 - **Timeout**: no fix for ``timeout_s`` → no estimate; the next fix re-initialises.
 - P is kept symmetric positive-definite: Joseph-form update (filterpy), symmetrised after every step.
 
@@ -59,9 +60,10 @@ class LinearTargetFilter(ABC):
 
     name = "linear"
 
-    def __init__(self, timeout_s: float = 3.0, replay_window_s: float = 1.0) -> None:
+    def __init__(self, timeout_s: float = 3.0, replay_window_s: float = 1.0, innovation_gate: bool = True) -> None:
         self.timeout_s = timeout_s
         self.replay_window_s = replay_window_s
+        self.innovation_gate = innovation_gate
         self.x: Array | None = None
         self.P: Array | None = None
         self.t_s = -math.inf  # time of the state x, P (the last fused fix)
@@ -183,7 +185,7 @@ class LinearTargetFilter(ABC):
         y = z - H @ x
         S = H @ P @ H.T + R
         nis = float(y @ np.linalg.solve(S, y))
-        if nis > NIS_GATE_2DOF:
+        if self.innovation_gate and nis > NIS_GATE_2DOF:
             self._outliers += 1
             if self._outliers >= OUTLIER_ESCAPE_COUNT:
                 self.counts["outlier_escape"] += 1

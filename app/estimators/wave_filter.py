@@ -62,8 +62,9 @@ class WaveFilter(LinearTargetFilter):
         min_wave_std_m: float = 0.005,
         timeout_s: float = 3.0,
         replay_window_s: float = 1.0,
+        innovation_gate: bool = True,
     ) -> None:
-        super().__init__(timeout_s, replay_window_s)
+        super().__init__(timeout_s, replay_window_s, innovation_gate)
         self.damping = damping
         if hs_m > 0.0 and tp_s > 0.0:
             self.omegas, variances = oscillator_bank(hs_m, tp_s, ratios)

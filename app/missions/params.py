@@ -38,6 +38,17 @@ class MissionParams(BaseModel):
         "wave", description="object motion model: the thesis's constant velocity, or current + waves"
     )
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
+    cv_q_pos_m2ps: float = Field(
+        0.01, ge=1e-12, le=100.0, description="constant-velocity filter: position process noise per second, m²/s"
+    )
+    cv_q_vel_m2ps3: float = Field(
+        0.05, ge=1e-12, le=100.0, description="constant-velocity filter: velocity process noise per second, m²/s³"
+    )
+    innovation_gate: bool = Field(
+        True,
+        description="the target filter rejects a fix whose NIS exceeds χ²(2) at p = 0.001 (false detections: keep "
+        "it on); false fuses every fix, as the thesis's filter did (the evaluation's thesis baseline)",
+    )
 
     # ---- pickup (app/missions/pickup.yaml) ------------------------------------------------------------
     calibrate_frames: int = Field(30, ge=5, le=500, description="radar frames in the background map, count")

@@ -19,10 +19,10 @@ import pytest
 from app.missions.pickup_feeds import PickupFeeds
 from app.settings import load_settings
 from sim import evaluate_cli
-from sim.evaluate_pickup import OUTCOMES, run_jobs
+from sim.evaluate_pickup import OUTCOMES, mission_params, run_jobs
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
-from sim.pickup_scenarios import CONFIGS, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
+from sim.pickup_scenarios import CONFIGS, CV_TUNED_Q, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
 from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
 from tests.mcaputil import PICKUP_TOPICS, check_run_mcap
@@ -258,3 +258,25 @@ def test_a_glyph_metres_off_the_tracked_marker_does_not_hide_it_but_hides_it_fro
     assert world.glyph_frames == 0
     world._tracked_ne_m = None  # the track lost: a fresh search sees the ID twice
     assert not seen_from(42.0, 12.0)
+
+
+@pytest.mark.parametrize("sea_state", sorted(CV_TUNED_Q))
+def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
+    """The wave filter gets the sea state (its Hs and Tp), gated; the thesis's constant-velocity filter the process
+    noise tuned for that sea, without a gate; and the mission accepts both."""
+    from app.estimators.cv_filter import ConstantVelocityFilter
+    from app.estimators.factory import make_target_filter
+    from app.estimators.wave_filter import WaveFilter
+    from app.missions.table import load_mission
+
+    sc = sample_scenario(SEED, 0, sea_state)
+    base = load_mission("pickup").params
+    thesis = base.model_copy(update=mission_params(sc, CONFIGS["thesis"]))
+    seapick = base.model_copy(update=mission_params(sc, CONFIGS["seapick"]))
+    cv, wave = make_target_filter(thesis), make_target_filter(seapick)
+    q_pos, q_vel = CV_TUNED_Q[sea_state]
+    assert isinstance(cv, ConstantVelocityFilter) and (cv.q_pos_m2ps, cv.q_vel_m2ps3) == (q_pos, q_vel)
+    assert not cv.innovation_gate and wave.innovation_gate  # the thesis fused every fix (Listing 4.1)
+    assert isinstance(wave, WaveFilter) and seapick.sea_state == thesis.sea_state == sea_state
+    assert (seapick.cv_q_pos_m2ps, seapick.cv_q_vel_m2ps3) == (base.cv_q_pos_m2ps, base.cv_q_vel_m2ps3)
+    assert thesis.search_start_ne_m == seapick.search_start_ne_m == tuple(sc["object_start_ne_m"])

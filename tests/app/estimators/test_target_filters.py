@@ -68,6 +68,24 @@ def test_spike_rejected_and_escape_after_consecutive_outliers(f):
     assert f.estimate(t + 0.2).pos_ned_m[0] == pytest.approx(30.0, abs=0.5)
 
 
+@pytest.mark.parametrize(
+    "f",
+    [ConstantVelocityFilter(innovation_gate=False), WaveFilter(hs_m=1.25, tp_s=5.6, innovation_gate=False)],
+    ids=lambda f: f.name,
+)
+def test_without_the_gate_every_fix_is_fused_as_in_listing_4_1(f):
+    """The thesis's filter had no innovation gate: the spike that the gated filter rejects is fused, and pulls the
+    estimate by its Kalman gain."""
+    gated = type(f)() if isinstance(f, ConstantVelocityFilter) else WaveFilter(hs_m=1.25, tp_s=5.6)
+    for g in (f, gated):
+        for k in range(50):
+            g.update(fix(0.05 * k, 0.0, 0.0, ((1e-4, 0.0), (0.0, 1e-4))))
+    r, rg = f.update(fix(2.5, 30.0, 0.0)), gated.update(fix(2.5, 30.0, 0.0))
+    assert rg.reason == "outlier" and abs(gated.estimate(2.5).pos_ned_m[0]) < 0.05
+    assert r.accepted and r.reason == "fused" and r.nis == pytest.approx(rg.nis)  # the NIS is still reported
+    assert f.estimate(2.5).pos_ned_m[0] > 0.08 and f.counts["outlier"] == f.counts["outlier_escape"] == 0
+
+
 @pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
 def test_a_late_fix_is_fused_as_if_it_had_come_in_order(f):
     in_order = type(f)() if isinstance(f, ConstantVelocityFilter) else WaveFilter(hs_m=1.25, tp_s=5.6)
@@ -188,7 +206,10 @@ def test_the_mission_file_chooses_the_filter():
     from app.estimators.factory import make_target_filter
     from app.missions.params import MissionParams
 
-    assert isinstance(make_target_filter(MissionParams(target_filter="constant_velocity")), ConstantVelocityFilter)
+    cv = make_target_filter(MissionParams(target_filter="constant_velocity", cv_q_pos_m2ps=1.0, cv_q_vel_m2ps3=1e-9))
+    assert isinstance(cv, ConstantVelocityFilter)
+    np.testing.assert_allclose(np.diag(cv.Q(1.0)), [1.0, 1.0, 1e-9, 1e-9])  # the mission's Q, per second
+    assert cv.innovation_gate and not make_target_filter(MissionParams(innovation_gate=False)).innovation_gate
     wave = make_target_filter(MissionParams(target_filter="wave", sea_state=4))
     assert isinstance(wave, WaveFilter)
     assert np.isclose(wave.omegas, 2 * math.pi / 7.892, rtol=1e-3).any()  # the SS4 peak is in the bank
