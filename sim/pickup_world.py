@@ -37,7 +37,18 @@ from sim.sea import FloatingObject, SeaConfig, SeaWorld
 
 MIN_EDGE_PX = SEARCH_FULL_MIN_PX  # a smaller marker is not decoded
 MIN_BUOY_PX = 8.0  # a buoy smaller than this across is not found (the buoy detector's smallest radius, with margin)
-BUOY_NOISE_PX = 1.0  # the buoy detector's centre: a Hough circle refined by the disc's moments
+BUOY_NOISE_PX = 1.0  # the buoy detector's centre: a Hough circle refined by the disc's moments (or its rim)
+# The buoy detector finds a buoy cut by the image's edge while this share of its outline is in the image (its rim
+# then gives the centre, within 1.5 px): on rendered frames it found one with 53 % in (cut by one edge) and 59 %
+# (at a corner), and lost it at 51 % and 50 %.
+BUOY_RIM_IN_IMAGE = 0.6
+
+
+def rim_in_image(centre_px: tuple[float, float], radius_px: float, width_px: int, height_px: int) -> float:
+    """The share of a circle's outline inside a ``width_px`` × ``height_px`` image (72 points)."""
+    a = np.linspace(0.0, 2.0 * math.pi, 72, endpoint=False)
+    u, v = centre_px[0] + radius_px * np.cos(a), centre_px[1] + radius_px * np.sin(a)
+    return float(np.mean((u >= 0.0) & (u <= width_px - 1) & (v >= 0.0) & (v <= height_px - 1)))
 
 
 @dataclass
@@ -181,19 +192,24 @@ class PickupWorld:
         return CameraObservation(t_s)
 
     def _buoy_seen(self, t_s: float, truth: Any, centre_ned_m: Any) -> CameraObservation:
-        """The buoy's centre (with the detector's noise) and diameter, when it is wholly in the image and big enough.
-        Its outline is taken as a level disc's of its diameter: within a few per cent of a sphere's in the image's
-        middle."""
+        """The buoy's centre (with the detector's noise) and diameter, when enough of it is in the image (wholly, or
+        ``BUOY_RIM_IN_IMAGE`` of its outline: low over it, it spills over the edge) and it is big enough. Its outline
+        is taken as a level disc's of its diameter: within a few per cent of a sphere's in the image's middle."""
         p = truth.pos_ned_m
         f = self.camera.frame(
             t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, centre_ned_m, marker_size_m=self.buoy_diameter_m
         )
         c = f.corners_true_px
         diameter_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
-        if not f.visible or not diameter_px >= MIN_BUOY_PX:
+        if not diameter_px >= MIN_BUOY_PX or not (f.visible or self._rim_seen(f.centre_true_px, diameter_px)):
             return CameraObservation(t_s)
         u, v = f.centre_true_px + self.rng.normal(0.0, BUOY_NOISE_PX, 2)
         return CameraObservation(t_s, center_px=(float(u), float(v)), diameter_px=diameter_px)
+
+    def _rim_seen(self, centre_px: Any, diameter_px: float) -> bool:
+        m = self.camera.model
+        c = (float(centre_px[0]), float(centre_px[1]))
+        return rim_in_image(c, diameter_px / 2.0, m.width_px, m.height_px) >= BUOY_RIM_IN_IMAGE
 
     def _note_contact(self, t_s: float, height_m: float, pos_ned_m: Any, object_ned_m: Any) -> None:
         """A touchdown on the water (the vehicle within ``CONTACT_M`` of the sea under it, away from the deck; it

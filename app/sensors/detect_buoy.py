@@ -103,7 +103,10 @@ class BuoyDetector(TrackingDetector):
             pad = radii[1]
             x0, y0 = max(int(x / scale) - pad, 0), max(int(y / scale) - pad, 0)
             x1, y1 = min(int((x + w) / scale) + pad, crop.shape[1]), min(int((y + h) / scale) + pad, crop.shape[0])
-            circle = self._hough(crop[y0:y1, x0:x1], radii)
+            # the image's own edges in the patch's pixels: a disc cut by them is fitted on its visible rim
+            ox, oy = win.x0 + x0, win.y0 + y0
+            edges = (-ox, -oy, image.shape[1] - 1 - ox, image.shape[0] - 1 - oy)
+            circle = self._hough(crop[y0:y1, x0:x1], radii, edges)
             if circle is not None and (best is None or circle[0] > best[0]):
                 best = (circle[0], circle[1] + x0, circle[2] + y0, circle[3])
         if best is None:
@@ -120,8 +123,11 @@ class BuoyDetector(TrackingDetector):
         )
 
     @staticmethod
-    def _hough(patch: Image, radii: tuple[int, int]) -> tuple[float, float, float, float] | None:
-        """The strongest bright circle in ``patch``: (quality, x, y, r), or None."""
+    def _hough(
+        patch: Image, radii: tuple[int, int], edges: tuple[int, int, int, int]
+    ) -> tuple[float, float, float, float] | None:
+        """The strongest bright circle in ``patch``: (quality, x, y, r), or None. ``edges``: the image's left,
+        top, right and bottom pixel in the patch's coordinates."""
         if min(patch.shape) < 2 * radii[0] + 2:
             return None
         circles = cv2.HoughCircles(
@@ -141,15 +147,20 @@ class BuoyDetector(TrackingDetector):
             inner = _ring_mean(patch, x, y, 0.0, 0.7 * r)
             outer = _ring_mean(patch, x, y, 1.3 * r, 1.8 * r)
             if inner > outer + 20.0:
-                cx, cy, radius = _refine(patch, float(x), float(y), float(r), 0.5 * (inner + outer))
+                cx, cy, radius = _refine(patch, float(x), float(y), float(r), 0.5 * (inner + outer), edges)
                 return (float(inner - outer), cx, cy, radius)
         return None
 
 
-def _refine(patch: Image, x: float, y: float, r: float, level: float) -> tuple[float, float, float]:
+def _refine(
+    patch: Image, x: float, y: float, r: float, level: float, edges: tuple[int, int, int, int]
+) -> tuple[float, float, float]:
     """Sub-pixel centre and radius: the centroid and area of the bright disc near the Hough circle.
 
-    The Hough accumulator is quantized to whole pixels; the disc's moments are not.
+    The Hough accumulator is quantized to whole pixels; the disc's moments are not. A disc cut by the image's
+    edge (``edges``: its left, top, right, bottom pixel in the patch), as the buoy is low over it, would pull the
+    centroid inwards and shrink the radius (by 0.064 of the diameter with a fifth of it outside): its centre and
+    radius come from a circle fitted to the rim that is in the image instead.
     """
     x0, y0 = max(int(x - 1.3 * r), 0), max(int(y - 1.3 * r), 0)
     x1, y1 = min(int(x + 1.3 * r) + 2, patch.shape[1]), min(int(y + 1.3 * r) + 2, patch.shape[0])
@@ -157,10 +168,48 @@ def _refine(patch: Image, x: float, y: float, r: float, level: float) -> tuple[f
     yy, xx = np.ogrid[y0:y1, x0:x1]
     near = (xx - x) ** 2 + (yy - y) ** 2 <= (1.25 * r) ** 2
     disc = ((window >= level) & near).astype(np.uint8)
+    left, top, right, bottom = edges[0] - x0, edges[1] - y0, edges[2] - x0, edges[3] - y0  # in the window
+    rows, cols = disc.shape
+    cut = (
+        (0 <= left < cols and disc[:, left].any())
+        or (0 <= right < cols and disc[:, right].any())
+        or (0 <= top < rows and disc[top, :].any())
+        or (0 <= bottom < rows and disc[bottom, :].any())
+    )
+    if cut:
+        rim = _rim_circle(disc, (left, top, right, bottom), r)
+        if rim is not None:
+            return x0 + rim[0], y0 + rim[1], rim[2]
     m = cv2.moments(disc, binaryImage=True)
-    if m["m00"] < 0.5 * np.pi * r * r:
+    if m["m00"] < (0.25 if cut else 0.5) * np.pi * r * r:
         return x, y, r  # not a clean disc: keep the Hough circle
     return x0 + m["m10"] / m["m00"], y0 + m["m01"] / m["m00"], float(np.sqrt(m["m00"] / np.pi))
+
+
+RIM_MIN_FRACTION = 0.3  # of the circumference in the image, for a circle fitted to the rim alone
+
+
+def _rim_circle(disc: np.ndarray, edges: tuple[int, int, int, int], r: float) -> tuple[float, float, float] | None:
+    """A circle fitted (algebraic least squares, Kåsa) to the outline of the disc mask, leaving out the outline
+    that runs along the image's edges; None when too little rim is left."""
+    contours, _ = cv2.findContours(disc, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return None
+    pts = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+    left, top, right, bottom = edges
+    x, y = pts[:, 0], pts[:, 1]
+    keep = (np.abs(x - left) > 1.5) & (np.abs(x - right) > 1.5) & (np.abs(y - top) > 1.5) & (np.abs(y - bottom) > 1.5)
+    x, y = x[keep], y[keep]
+    if x.size < RIM_MIN_FRACTION * 2.0 * np.pi * r:
+        return None
+    A = np.column_stack([x, y, np.ones_like(x)])
+    (a, b, c), *_ = np.linalg.lstsq(A, x * x + y * y, rcond=None)
+    cx, cy = a / 2.0, b / 2.0
+    radius2 = c + cx * cx + cy * cy
+    if not radius2 > 0.0:
+        return None
+    # the outline runs through the outermost pixels' centres: half a pixel inside the disc's edge
+    return float(cx), float(cy), float(np.sqrt(radius2)) + 0.5
 
 
 def _ring_mean(patch: Image, x: float, y: float, r0: float, r1: float) -> float:
