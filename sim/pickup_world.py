@@ -21,6 +21,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -115,6 +116,9 @@ class PickupWorld:
         self.calibrations = 0
         self.calibrated_at_m: float | None = None
         self.camera_blind = False  # set from outside: the marker is not detected (glare, spray, occlusion)
+        # called at every camera frame with (t_s, the vehicle's truth, the object's state): watching only — a task
+        # of its own would wake the loop at other instants and change the flight it watches
+        self.frame_observers: list[Callable[[float, Any, Any], None]] = []
 
     async def calibrate_radar(self, n_frames: int) -> None:
         """The radar's background capture (``n_frames`` at ``radar_fps_hz``): it fails while the sea is in range."""
@@ -143,6 +147,8 @@ class PickupWorld:
             truth = self.vehicle.truth()
             self._judge_grab(t_s, truth)
             o = self.object.state(t_s)
+            for observe in self.frame_observers:
+                observe(t_s, truth, o)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
             self.vehicle.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, p, sea_down)  # at the frame rate

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import json
 import math
 import subprocess
@@ -280,3 +281,20 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
     assert isinstance(wave, WaveFilter) and seapick.sea_state == thesis.sea_state == sea_state
     assert (seapick.cv_q_pos_m2ps, seapick.cv_q_vel_m2ps3) == (base.cv_q_pos_m2ps, base.cv_q_vel_m2ps3)
     assert thesis.search_start_ne_m == seapick.search_start_ne_m == tuple(sc["object_start_ne_m"])
+
+
+def test_a_run_flies_the_same_with_its_report_as_without(tmp_path):
+    """``--run-reports`` only watches: the result line of a run with its event log, truth trace, report and MCAP is
+    the one without them (a trace task of its own, sleeping 0.2 s at a time, had turned a pickup into a failure)."""
+    from sim.evaluate_pickup import run_pickup
+
+    sc = sample_scenario(1, 8, 3)  # a buoy at sea state 3, on ArduPilot: picked up only without the old trace task
+    bare = run_pickup(sc, "seapick", 8)
+    reported = run_pickup(sc, "seapick", 8, str(tmp_path))
+    bare.pop("wall_s"), reported.pop("wall_s")
+    print(bare)
+    assert reported == bare
+    trace = [json.loads(x) for x in (tmp_path / "sim_state.jsonl").read_text().splitlines()]
+    truth_t = [r["t_s"] for r in trace if r["event"] == "truth"]
+    assert len(truth_t) > 100 and all(0.19 < b - a < 0.21 for a, b in itertools.pairwise(truth_t))
+    assert (tmp_path / "report.png").stat().st_size > 0 and (tmp_path / "run.mcap").stat().st_size > 0
