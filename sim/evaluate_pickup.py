@@ -30,7 +30,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Callable, Coroutine, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,7 +39,6 @@ from app.cli import one_line
 from app.clock import LoopClock
 from app.eventlog import EventLog
 from app.flight import fly_mission
-from app.missions.pickup_feeds import PickupFeeds
 from app.missions.table import MissionTable, load_mission
 from app.settings import Settings, load_settings
 from sim.airframes import SIM_PROFILES
@@ -162,14 +161,13 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: 
     events = EventLog(run_dir / "events.jsonl" if run_dir is not None else None)
     states: list[dict[str, Any]] = []
     events.subscribe({"state"}, states.append)
-    sensors: list[Callable[[PickupFeeds], Coroutine[Any, Any, None]]] = [world.sensors]
     trace = _TruthTrace(run_dir / "sim_state.jsonl") if run_dir is not None else None
     if trace is not None:
         world.frame_observers.append(trace)
     t0_s = clock.now_s()
     try:
         async with asyncio.timeout(RUN_LIMIT_S):
-            flight = await fly_mission(vehicle, table, settings, clock, events, sensors=sensors)
+            flight = await fly_mission(vehicle, table, settings, clock, events, sensors=[world.sensors])
         outcome, reason, final_state = flight.result.outcome, flight.result.reason, flight.result.final_state
         figures = flight.figures
     except TimeoutError:
