@@ -204,6 +204,7 @@ async def start_descend(io: MissionIO) -> None:
         p.descend_max_lead_m,
         p.final_max_speed_mps,
         math.inf if p.final_blind_gap_s is None else p.final_blind_gap_s,
+        math.inf if p.final_max_lead_m is None else p.final_max_lead_m,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

@@ -114,6 +114,14 @@ class MissionParams(BaseModel):
     descend_max_lead_m: float = Field(
         0.5, ge=0.1, le=5.0, description="the desired height leads the vehicle's own down by at most this, m"
     )
+    final_max_lead_m: float | None = Field(
+        None,
+        ge=0.05,
+        le=5.0,
+        description="in the final descent the desired height leads the vehicle's own down by at most this (a "
+        "vehicle coming down faster cannot stop above the water when it must climb back); unset: "
+        "descend_max_lead_m, m",
+    )
     grab_max_offset_m: float = Field(
         0.15, ge=0.02, le=2.0, description="at the water farther than this from the estimate: no grab, climb back, m"
     )

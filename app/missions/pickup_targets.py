@@ -188,7 +188,10 @@ class DescendTarget(ObjectTarget):
     the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start — else it
     climbs back to the final height while the camera can still see the object. The desired height never leads
     the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
-    would otherwise come down at the envelope's full speed."""
+    would otherwise come down at the envelope's full speed; in the final part by no more than
+    ``final_max_lead_m`` (0.5 m of lead there asked for 1 m/s down, and an ArduCopter coming down at that,
+    accelerating upwards at about 1 m/s², sank on for up to 0.5 m when it had to climb back: into the water,
+    off the object)."""
 
     name = "descend"
 
@@ -208,6 +211,7 @@ class DescendTarget(ObjectTarget):
         max_lead_m: float = math.inf,
         final_max_speed_mps: float = math.inf,
         blind_gap_s: float = math.inf,
+        final_max_lead_m: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m)
         self.speed_mps = speed_mps
@@ -221,6 +225,7 @@ class DescendTarget(ObjectTarget):
         self.max_lead_m = max_lead_m
         self.final_max_speed_mps = final_max_speed_mps
         self.blind_gap_s = blind_gap_s
+        self.final_max_lead_m = min(final_max_lead_m, max_lead_m)
         self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
         self.go_arounds = 0  # final descents given up for drifting off the object
         self.plunging = False  # in the final part, right over the object
@@ -278,8 +283,9 @@ class DescendTarget(ObjectTarget):
         else:  # off the object on the way down too: hold the height until guidance has caught up with it
             self.waits += 1
         vehicle_m = snap.height_over_mean_sea_m
-        if vehicle_m is not None and self.height_m < vehicle_m - self.max_lead_m:
-            self.height_m = vehicle_m - self.max_lead_m  # not far ahead of the vehicle on the way down
+        lead_m = self.final_max_lead_m if self.height_m < final_m else self.max_lead_m
+        if vehicle_m is not None and self.height_m < vehicle_m - lead_m:
+            self.height_m = vehicle_m - lead_m  # not far ahead of the vehicle on the way down
         # aim at the object now, its velocity fed forward: aiming at a prediction of it at touchdown (up to 1 s
         # ahead) put the vehicle up to half a wave orbit off and lost the marker low (sea state 2: 0 of 3
         # seeds picked up with the lead, 20 of 20 without)

@@ -132,6 +132,23 @@ def test_the_desired_height_leads_a_lagging_vehicle_by_at_most_the_lead():
     assert target.height_m == 3.0  # 3.5 − 0.5, not the 2.5 m the 0.5 m/s ramp would have reached
 
 
+def test_in_the_final_part_the_desired_height_leads_the_vehicle_by_at_most_the_final_lead():
+    """Low over the water the lead is smaller: 0.5 m of lead asked for ~1 m/s down, and an ArduCopter coming
+    down at that speed (1 m/s² vertically) met the water when it had to climb back."""
+    scene = Scene()
+    target = descend(scene, final_max_lead_m=0.1)
+    t_s = fly(target, scene, 100.0, 7.0)  # over the object, following: down through the final height
+    assert target.plunging and target.height_m < 1.0
+    scene.vehicle_height_m = 0.8  # the vehicle stops following at 0.8 m
+    fly(target, scene, t_s, 2.0, follow=False)
+    assert target.height_m == pytest.approx(0.7)  # 0.8 − 0.1, not the 0.3 m the 0.5 m lead would allow
+    above = descend(Scene(), final_max_lead_m=0.1)
+    above_scene = above.model
+    above_scene.vehicle_height_m = 3.5  # above the final height the descent's own lead holds
+    fly(above, above_scene, 100.0, 3.0, follow=False)
+    assert above.height_m == 3.0
+
+
 def test_verify_follows_the_estimate_up_and_stays_where_it_was_last_when_it_is_gone():
     scene = Scene()
     target = VerifyTarget(scene, scene.telemetry, 3.0, (5.0, 5.0))  # type: ignore[arg-type]
