@@ -21,6 +21,7 @@ from app.missions.pickup_feeds import PickupFeeds
 from app.settings import load_settings
 from sim import evaluate_cli
 from sim.evaluate_pickup import OUTCOMES, mission_params, run_jobs
+from sim.evaluate_report import table
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
 from sim.pickup_scenarios import CONFIGS, CV_TUNED_Q, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
@@ -97,6 +98,7 @@ def test_every_run_has_a_run_mcap_that_reads_back_channel_by_channel(evaluation)
 def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
     """One JSON object on stdout; each configuration's figures recomputed from results.jsonl; ratio_p95 = a/b."""
     doc = json.loads(evaluation["json"])  # the whole of stdout is the one object
+    assert table(doc) in evaluation["stderr"]  # and the table, for the reader, on stderr
     assert list(doc["configs"]) == ["thesis", "seapick"]
     for name, c in doc["configs"].items():
         rs = [r for r in evaluation["results"] if r["config"] == name]
