@@ -6,10 +6,10 @@ configuration (``--compare thesis,seapick``; default ``seapick``) — the same s
 local processes or on the Dask cluster at ``--dask``. A progress bar goes to stderr; ``DIR`` (default
 ``runs/eval-<seed>``) gets ``results.jsonl`` (a line per run, ``sim.evaluate_pickup``), ``summary.json``,
 ``report.png`` and ``index.html`` (while it runs, ``results.partial.jsonl`` gets each result as it comes in, so a
-run that dies keeps what it flew). On stdout: the summary table, or with ``--json`` one JSON object (the table
-then goes to stderr) (per
-configuration runs, success_rate, touchdown_p50_m, touchdown_p95_m, off_target_touchdowns, envelope_violations,
-speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's p95 over the second's).
+run that dies keeps what it flew). On stdout: the summary table, or with ``--json`` one JSON object, the table
+then going to stderr (per configuration runs, success_rate, touchdown_p50_m, touchdown_p95_m,
+off_target_touchdowns, envelope_violations, speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's
+p95 over the second's).
 """
 
 from __future__ import annotations
