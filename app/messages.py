@@ -10,6 +10,7 @@ flows one way, from ``app.sensors`` to ``app.estimators``, and neither imports t
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from enum import StrEnum
@@ -329,7 +330,8 @@ class CameraModel:
             return np.zeros((0, 2))
         # Iterative inverse of eq. 2.9 (OpenCV default: 5 iterations is too coarse for strong distortion).
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
-        xy = cv2.undistortPointsIter(px, self.K, self.dist_coeffs, np.eye(3), np.eye(3), criteria)
+        K, dist = _cv_intrinsics(self)
+        xy = cv2.undistortPointsIter(px, K, dist, _EYE3, _EYE3, criteria)
         return np.asarray(xy, dtype=np.float64).reshape(-1, 2)
 
     def undistort_to_rays(self, pixels: ArrayLike) -> FloatArray:
@@ -349,7 +351,8 @@ class CameraModel:
         out = np.full((len(p), 2), np.nan)
         front = p[:, 2] > MIN_DEPTH_M
         if np.any(front):
-            img, _ = cv2.projectPoints(p[front].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist_coeffs)
+            K, dist = _cv_intrinsics(self)
+            img, _ = cv2.projectPoints(p[front].reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
             out[front] = img.reshape(-1, 2)
         return out
 
@@ -365,3 +368,17 @@ class CameraModel:
             & (u <= self.width_px - 1 - margin_px)
             & (v <= self.height_px - 1 - margin_px)
         )
+
+
+def _read_only(a: FloatArray) -> FloatArray:
+    a.setflags(write=False)
+    return a
+
+
+_EYE3, _ZERO3 = _read_only(np.eye(3)), _read_only(np.zeros(3))
+
+
+@functools.lru_cache(maxsize=16)
+def _cv_intrinsics(model: CameraModel) -> tuple[FloatArray, FloatArray]:
+    """``model.K`` and ``model.dist_coeffs`` as OpenCV takes them, built once per camera (read-only)."""
+    return _read_only(model.K), _read_only(model.dist_coeffs)

@@ -31,7 +31,7 @@ Evaluation (:class:`PhaseTrig`, :class:`WaveSums`) works on blocks of samples ×
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -228,6 +228,22 @@ class WaveSums:
             np.stack([ones, v_n, v_e, v_n * v_n, v_n * v_e, v_e * v_e], axis=1),
             a_ne,
         ]
+
+    def one(self, f: FloatArray, monomials: Sequence[Sequence[float]]) -> list[list[float]]:
+        """``__call__`` for one sample (``f`` 1 × M), in floats: the monomials as tuples, the sums as lists."""
+        products = (f @ self._weights)[0].tolist()
+        sums, start = [], 0
+        for m, (n_columns, n_terms) in zip(monomials, self._shapes, strict=True):
+            column_sums = []
+            for column in range(n_columns):
+                s, i = 0.0, start + column * n_terms
+                for term in m:
+                    s += products[i] * term
+                    i += 1
+                column_sums.append(s)
+            sums.append(column_sums)
+            start += n_columns * n_terms
+        return sums
 
     def __call__(self, f: FloatArray, monomials: list[FloatArray]) -> list[FloatArray]:
         """[Σ g f(θ), Σ g f(θ) θ̇, Σ g f(θ) θ̇², Σ g f(θ) θ̈], each (N, its number of columns)."""

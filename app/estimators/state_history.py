@@ -51,6 +51,7 @@ class _Ring:
         self._v = np.empty((2 * capacity, width))
         self._start = 0
         self._end = 0
+        self.appended = 0  # samples appended so far
 
     def __len__(self) -> int:
         return self._end - self._start
@@ -70,6 +71,7 @@ class _Ring:
         self._t[self._end] = t_s
         self._v[self._end] = values
         self._end += 1
+        self.appended += 1
         if len(self) > self.capacity:
             self._start += 1
 
@@ -104,6 +106,10 @@ class StateHistory:
         self._att = _Ring(capacity, 4)
         self.dropped_out_of_order = 0
         self.dropped_non_finite = 0
+        # the last answer of ``at`` and what it was read from (the time, and each stream's newest sample): asked
+        # for the same instant by the guards, the guidance and the trace within one tick
+        self._at_key: tuple[float, int, int] | None = None
+        self._at_state: VehicleStateNed | None = None
 
     # -- feeding ---------------------------------------------------------------------------------
 
@@ -148,11 +154,15 @@ class StateHistory:
 
     def at(self, t_s: float) -> VehicleStateNed:
         """The vehicle state interpolated at ``t_s``; raises ``OutsideHistoryError`` when it cannot."""
+        key = (t_s, self._pos_vel.appended, self._att.appended)
+        if key == self._at_key and self._at_state is not None:
+            return self._at_state
         i0, i1, f = self._pos_vel.bracket("position", t_s, self.max_gap_s)
         pv = (1.0 - f) * self._pos_vel.values(i0) + f * self._pos_vel.values(i1)
         j0, j1, g = self._att.bracket("attitude", t_s, self.max_gap_s)
         q = quat_slerp(self._att.values(j0), self._att.values(j1), g)
-        return VehicleStateNed(t_s, _vec3(pv[:3]), _vec3(pv[3:]), q)
+        self._at_key, self._at_state = key, VehicleStateNed(t_s, _vec3(pv[:3]), _vec3(pv[3:]), q)
+        return self._at_state
 
     def latest(self) -> VehicleStateNed:
         """The newest sample of each stream as they are (no interpolation), stamped with the newer time."""

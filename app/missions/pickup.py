@@ -96,6 +96,12 @@ def polygon_area(corners: ArrayLike) -> float:
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
+def largest_eigenvalue(cov: tuple[tuple[float, float], tuple[float, float]]) -> float:
+    """The larger eigenvalue of a symmetric 2×2 matrix, in closed form: (a + c)/2 + √(((a − c)/2)² + b²)."""
+    (a, b), (_, c) = cov
+    return 0.5 * (a + c) + math.hypot(0.5 * (a - c), b)
+
+
 def sphere_size_ratio(
     center_px: tuple[float, float], diameter_px: float, fix: SeaPlaneFix, camera: CameraModel, diameter_m: float
 ) -> float:
@@ -449,7 +455,7 @@ class PickupEstimates:
         est = self.estimate(t_s)
         sigma_m = None
         if est is not None:
-            sigma_m = math.sqrt(max(np.linalg.eigvalsh(np.array(est.cov_ne_m2))))
+            sigma_m = math.sqrt(largest_eigenvalue(est.cov_ne_m2))
         if sigma_m is not None and sigma_m <= self.checks.converged_sigma_m:
             if self._converged_since_s is None:
                 self._converged_since_s = t_s

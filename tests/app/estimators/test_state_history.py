@@ -53,6 +53,28 @@ def test_exactly_at_a_sample_gives_that_sample():
     np.testing.assert_allclose(s.pos_ned_m, (10.5, 19.0, -4.75), atol=1e-12)
 
 
+def test_a_time_asked_again_after_a_new_sample_is_interpolated_anew():
+    # the answer for an instant is remembered until a sample arrives: one arriving later than the newest reshapes
+    # the bracket a time past the old newest falls in (here: the newest position was a jump, now interpolated)
+    h = StateHistory(max_gap_s=2.0)
+    h.add_pos_vel(pv(0.0, (0.0, 0.0, 0.0)))
+    h.add_attitude(att(0.0))
+    h.add_pos_vel(pv(1.0, (1.0, 0.0, 0.0)))
+    h.add_attitude(att(1.0, yaw_deg=10.0))
+    assert h.at(0.5).pos_ned_m == (0.5, 0.0, 0.0)
+    assert h.at(0.5) is h.at(0.5)
+    with pytest.raises(OutsideHistoryError):
+        h.at(1.2)
+    h.add_pos_vel(pv(1.4, (5.0, 0.0, 0.0)))
+    with pytest.raises(OutsideHistoryError, match="attitude"):
+        h.at(1.2)
+    h.add_attitude(att(1.4, yaw_deg=50.0))
+    s = h.at(1.2)
+    np.testing.assert_allclose(s.pos_ned_m, (3.0, 0.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(euler_deg(s.q_ned_frd), (0.0, 0.0, 30.0), atol=1e-9)
+    assert h.at(0.5).pos_ned_m == (0.5, 0.0, 0.0)
+
+
 def test_attitude_slerp_takes_the_short_way_across_180_degrees():
     h = StateHistory()
     for t, yaw in ((0.0, 170.0), (0.1, -170.0)):

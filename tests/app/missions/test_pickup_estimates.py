@@ -340,3 +340,19 @@ def _accept():
     from app.estimators.target_filter import UpdateResult
 
     return UpdateResult(True, 0.0, "fused")
+
+
+def test_the_largest_eigenvalue_of_a_covariance_matches_numpys() -> None:
+    # the convergence check's σ: closed form for the 2×2 covariance, against LAPACK, from round to very elongated
+    from app.missions.pickup import largest_eigenvalue
+
+    rng = np.random.default_rng(4)
+    for scale in (1e-6, 1e-2, 1.0, 50.0):
+        for _ in range(200):
+            a = rng.normal(size=(2, 2))
+            cov = a @ a.T * scale
+            expected = float(np.linalg.eigvalsh(cov)[-1])
+            got = largest_eigenvalue(((cov[0, 0], cov[0, 1]), (cov[1, 0], cov[1, 1])))
+            assert got == pytest.approx(expected, rel=1e-12)
+    assert largest_eigenvalue(((4.0, 0.0), (0.0, 9.0))) == 9.0
+    assert largest_eigenvalue(((2.0, 1.0), (1.0, 2.0))) == pytest.approx(3.0, rel=1e-15)
