@@ -8,6 +8,7 @@ Quaternions are ``(w, x, y, z)`` with ``w ≥ 0`` not enforced; ``q_a_b`` rotate
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -71,22 +72,28 @@ def quat_to_matrix(q: ArrayLike) -> FloatArray:
     )
 
 
-def quat_slerp(q0: ArrayLike, q1: ArrayLike, f: float) -> Quat:
-    """Spherical linear interpolation, ``f`` ∈ [0, 1], along the shorter arc (q and −q are one rotation)."""
-    a = np.asarray(q0, dtype=np.float64)
-    b = np.asarray(q1, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
-    dot = float(a @ b)
+def quat_slerp(q0: Iterable[float], q1: Iterable[float], f: float) -> Quat:
+    """Spherical linear interpolation, ``f`` ∈ [0, 1], along the shorter arc (q and −q are one rotation). In
+    floats: the state history slerps at every read, and numpy's per-call cost was most of it for 4 numbers."""
+    a, b = _unit4(q0), _unit4(q1)
+    dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
     if dot < 0.0:  # the shorter way round
-        b, dot = -b, -dot
+        b, dot = (-b[0], -b[1], -b[2], -b[3]), -dot
     if dot > 0.9995:  # nearly parallel: lerp is exact to ~1e-7 and avoids 0/0
-        q = a + f * (b - a)
+        q = tuple(x + f * (y - x) for x, y in zip(a, b, strict=True))
     else:
         omega = math.acos(dot)
-        q = (math.sin((1 - f) * omega) * a + math.sin(f * omega) * b) / math.sin(omega)
-    q = q / np.linalg.norm(q)
-    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        sin_omega = math.sin(omega)
+        wa, wb = math.sin((1 - f) * omega), math.sin(f * omega)
+        q = tuple((wa * x + wb * y) / sin_omega for x, y in zip(a, b, strict=True))
+    w, x, y, z = _unit4(q)
+    return (w, x, y, z)
+
+
+def _unit4(q: Iterable[float]) -> tuple[float, float, float, float]:
+    w, x, y, z = (float(c) for c in q)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return (w / n, x / n, y / n, z / n)
 
 
 def skew(v: ArrayLike) -> FloatArray:

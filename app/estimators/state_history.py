@@ -1,4 +1,4 @@
-"""Vehicle-state history: a bounded ring buffer of telemetry, interpolated at a measurement's time. Pure.
+"""Vehicle-state history: a bounded ring of telemetry, interpolated at a measurement's time. Pure.
 
 STYLE 10 (AC_PrecLand's inertial history): a camera frame is fused against the vehicle state at its
 *capture* time, not against the newest telemetry. Position and attitude arrive as separate streams at
@@ -15,13 +15,12 @@ once ``capacity`` is reached.
 
 from __future__ import annotations
 
+import bisect
 import math
-
-import numpy as np
 
 from app.errors import AppError
 from app.estimators.rotations import quat_from_euler_zyx, quat_slerp
-from app.messages import AttitudeEuler, PositionVelocityNed, Vec3, VehicleStateNed
+from app.messages import AttitudeEuler, PositionVelocityNed, VehicleStateNed
 
 DEFAULT_CAPACITY = 256  # 5 s of 50 Hz telemetry
 DEFAULT_MAX_GAP_S = 0.5  # two samples further apart than this do not bracket anything
@@ -41,60 +40,59 @@ class OutsideHistoryError(AppError):
 
 
 class _Ring:
-    """Time-ordered samples (t, k values) in a contiguous window of a 2×capacity array: O(1) append."""
+    """Time-ordered samples (t, k values) in Python lists, the live window from ``_start`` (amortised O(1)
+    append: the fallen-out front is cut off once it is as long as the window). Floats, not numpy: a bracket is
+    read a few hundred times per second of flight, a handful of numbers each time."""
 
     def __init__(self, capacity: int, width: int) -> None:
         if capacity < 2:
             raise ValueError("capacity must be at least 2")
         self.capacity = capacity
-        self._t = np.empty(2 * capacity)
-        self._v = np.empty((2 * capacity, width))
+        self.width = width
+        self._t: list[float] = []
+        self._v: list[tuple[float, ...]] = []
         self._start = 0
-        self._end = 0
         self.appended = 0  # samples appended so far
 
     def __len__(self) -> int:
-        return self._end - self._start
+        return len(self._t) - self._start
 
     def newest_t(self) -> float | None:
-        return float(self._t[self._end - 1]) if len(self) else None
+        return self._t[-1] if len(self) else None
 
     def oldest_t(self) -> float | None:
-        return float(self._t[self._start]) if len(self) else None
+        return self._t[self._start] if len(self) else None
 
     def append(self, t_s: float, values: tuple[float, ...]) -> None:
-        if self._end == len(self._t):  # slide the window back to the front
-            n = len(self)
-            self._t[:n] = self._t[self._start : self._end]
-            self._v[:n] = self._v[self._start : self._end]
-            self._start, self._end = 0, n
-        self._t[self._end] = t_s
-        self._v[self._end] = values
-        self._end += 1
+        self._t.append(float(t_s))
+        self._v.append(tuple(float(v) for v in values))
         self.appended += 1
         if len(self) > self.capacity:
             self._start += 1
+            if self._start >= self.capacity:
+                del self._t[: self._start], self._v[: self._start]
+                self._start = 0
 
     def bracket(self, stream: str, t_s: float, max_gap_s: float) -> tuple[int, int, float]:
         """Indices of the samples around ``t_s`` and the fraction between them (0 at the older one)."""
-        t = self._t[self._start : self._end]
-        if len(t) == 0 or t_s < t[0] or t_s > t[-1]:
+        t = self._t
+        if len(self) == 0 or t_s < t[self._start] or t_s > t[-1]:
             raise OutsideHistoryError(stream, t_s, self.oldest_t(), self.newest_t(), "outside the span")
-        i = int(np.searchsorted(t, t_s, side="right")) - 1
+        i = bisect.bisect_right(t, t_s, self._start) - 1
         if i == len(t) - 1:  # exactly the newest sample
-            return self._start + i, self._start + i, 0.0
-        dt = float(t[i + 1] - t[i])
+            return i, i, 0.0
+        dt = t[i + 1] - t[i]
         if dt > max_gap_s:
             raise OutsideHistoryError(
                 stream, t_s, self.oldest_t(), self.newest_t(), f"in a {dt:.3f} s gap between samples"
             )
-        return self._start + i, self._start + i + 1, float((t_s - t[i]) / dt)
+        return i, i + 1, (t_s - t[i]) / dt
 
-    def values(self, index: int) -> np.ndarray:
+    def values(self, index: int) -> tuple[float, ...]:
         return self._v[index]
 
-    def newest_values(self) -> np.ndarray | None:
-        return self._v[self._end - 1] if len(self) else None
+    def newest_values(self) -> tuple[float, ...] | None:
+        return self._v[-1] if len(self) else None
 
 
 class StateHistory:
@@ -136,7 +134,7 @@ class StateHistory:
             return False
         q = quat_from_euler_zyx(a.roll_rad, a.pitch_rad, a.yaw_rad)
         prev = self._att.newest_values()
-        if prev is not None and float(np.dot(prev, q)) < 0.0:  # keep the sign continuous
+        if prev is not None and sum(a * b for a, b in zip(prev, q, strict=True)) < 0.0:  # keep the sign continuous
             q = (-q[0], -q[1], -q[2], -q[3])
         self._att.append(a.t_s, q)
         return True
@@ -158,10 +156,11 @@ class StateHistory:
         if key == self._at_key and self._at_state is not None:
             return self._at_state
         i0, i1, f = self._pos_vel.bracket("position", t_s, self.max_gap_s)
-        pv = (1.0 - f) * self._pos_vel.values(i0) + f * self._pos_vel.values(i1)
+        a, b = self._pos_vel.values(i0), self._pos_vel.values(i1)
+        pv = [(1.0 - f) * x + f * y for x, y in zip(a, b, strict=True)]
         j0, j1, g = self._att.bracket("attitude", t_s, self.max_gap_s)
         q = quat_slerp(self._att.values(j0), self._att.values(j1), g)
-        self._at_key, self._at_state = key, VehicleStateNed(t_s, _vec3(pv[:3]), _vec3(pv[3:]), q)
+        self._at_key, self._at_state = key, VehicleStateNed(t_s, (pv[0], pv[1], pv[2]), (pv[3], pv[4], pv[5]), q)
         return self._at_state
 
     def latest(self) -> VehicleStateNed:
@@ -171,11 +170,7 @@ class StateHistory:
         if pv is None or q is None:
             raise OutsideHistoryError("state", float("nan"), None, None, "no samples yet")
         t_s = max(self._pos_vel.newest_t() or 0.0, self._att.newest_t() or 0.0)
-        return VehicleStateNed(t_s, _vec3(pv[:3]), _vec3(pv[3:]), (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
+        return VehicleStateNed(t_s, (pv[0], pv[1], pv[2]), (pv[3], pv[4], pv[5]), (q[0], q[1], q[2], q[3]))
 
     def __len__(self) -> int:
         return min(len(self._pos_vel), len(self._att))
-
-
-def _vec3(a: np.ndarray) -> Vec3:
-    return (float(a[0]), float(a[1]), float(a[2]))
