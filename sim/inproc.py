@@ -1,8 +1,9 @@
 """An in-process vehicle: ``app.offboard.vehicle.Vehicle`` on the simulated flight stack, on the loop clock.
 
 No MAVLink and no wall clock: time is ``asyncio.get_running_loop().time()``, so under looptime a whole
-flight runs in virtual time. ``run()`` steps the physics at ``physics_hz`` with ``asyncio.sleep``;
-every command also brings the simulation up to "now" first. Positions are the autopilot's local NED
+flight runs in virtual time. The physics ticks on its own fixed grid (``sim.flight_stack``), brought up to "now"
+by every command and every look at the vehicle; ``run()`` wakes at ``wake_hz`` (twice the telemetry streams' 50 Hz)
+to hand out the samples and poll the watchdogs on the way. Positions are the autopilot's local NED
 (metres), yaw in radians.
 
 It behaves like the MAVSDK adapter talking to the MAVLink endpoint would:
@@ -54,6 +55,7 @@ from sim.state_log import StateLog
 from sim.wind import Wind, WindConfig
 
 TELEMETRY_PERIOD_S = 0.02  # position and attitude samples for listeners: the 50 Hz streams
+SAMPLE_SLACK_S = 1e-6  # a wake a rounding error early for the next sample still gives it
 SETPOINT_RESEND_S = 0.05  # MAVSDK offboard re-sends the last setpoint at 20 Hz
 OFFBOARD_WATCHDOG_S = 3.0  # MAVSDK stops sending when the vehicle is not in OFFBOARD after this
 _RESULT_NAMES = {
@@ -77,7 +79,7 @@ class InProcessVehicle:
         params: dict[str, float] | None = None,
         vehicle_params: MultirotorParams | None = None,
         estimator: EstimatorErrorParams | None = None,
-        physics_hz: float = 100.0,
+        wake_hz: float = 100.0,
         gps_fix_delay_s: float = 1.0,
         state_log: StateLog | None = None,
     ) -> None:
@@ -95,7 +97,7 @@ class InProcessVehicle:
         self.stack = FlightStack(  # on a fixed grid: a run is the same whoever watches it
             dynamics, profile, origin, params, gps_fix_delay_s, on_event=self._on_event, fixed_grid=True
         )
-        self._period_s = 1.0 / physics_hz
+        self._period_s = 1.0 / wake_hz
         self._stream: PositionTarget | None = None
         self._stream_started_s = 0.0
         self._next_resend_s = 0.0
@@ -115,7 +117,7 @@ class InProcessVehicle:
         return Autopilot.ARDUPILOT if self.stack.profile is Profile.ARDUPILOT else Autopilot.PX4
 
     async def run(self) -> None:
-        """Step the simulation until cancelled."""
+        """Bring the simulation up to now every ``1/wake_hz`` until cancelled."""
         while True:
             self._advance()
             await asyncio.sleep(self._period_s)
@@ -299,7 +301,7 @@ class InProcessVehicle:
         st.step(t_s)
         self._poll_watchdogs(t_s)
         if self._listeners and st.started and t_s >= self._next_sample_s:
-            self._next_sample_s = t_s + TELEMETRY_PERIOD_S
+            self._next_sample_s = t_s + TELEMETRY_PERIOD_S - SAMPLE_SLACK_S  # the next wake, rounding and all
             snap = self.telemetry()
             assert snap.pos_vel is not None and snap.attitude is not None
             for listener in self._listeners:
