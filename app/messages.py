@@ -348,10 +348,13 @@ class CameraModel:
         import cv2
 
         p = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
-        out = np.full((len(p), 2), np.nan)
         front = p[:, 2] > MIN_DEPTH_M
+        K, dist = _cv_intrinsics(self)
+        if len(p) and front.all():  # the usual case: no points to leave out
+            img, _ = cv2.projectPoints(p.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
+            return np.asarray(img, dtype=np.float64).reshape(-1, 2)
+        out = np.full((len(p), 2), np.nan)
         if np.any(front):
-            K, dist = _cv_intrinsics(self)
             img, _ = cv2.projectPoints(p[front].reshape(-1, 1, 3), _ZERO3, _ZERO3, K, dist)
             out[front] = img.reshape(-1, 2)
         return out

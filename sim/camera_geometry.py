@@ -53,6 +53,17 @@ def marker_corners_ned(
     return np.asarray(centre_ned_m, dtype=np.float64) + local @ R.T
 
 
+def mean_edge_px(corners_px: FloatArray) -> float:
+    """The mean edge of a quadrilateral's corners (4×2 pixels, in order): the apparent size of a marker or a buoy.
+    In floats, summed in numpy's order (``np.mean(np.linalg.norm(c − roll(c), axis=1))`` to the last bit)."""
+    c = corners_px.tolist()
+    total = 0.0
+    for (u0, v0), (u1, v1) in zip(c, c[1:] + c[:1], strict=True):
+        du, dv = u0 - u1, v0 - v1
+        total += math.sqrt(du * du + dv * dv)
+    return total / len(c)
+
+
 @dataclass(frozen=True, eq=False)
 class GeometricFrame:
     """One simulated detection and its ground truth."""

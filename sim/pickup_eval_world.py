@@ -34,6 +34,7 @@ import numpy as np
 from app.missions.pickup_feeds import CameraObservation
 from app.sensors.detect import MIN_WINDOW_PX
 from app.settings import Settings
+from sim.camera_geometry import mean_edge_px
 from sim.inproc import InProcessVehicle
 from sim.pickup_world import BUOY_NOISE_PX, MIN_BUOY_PX, MIN_EDGE_PX, PickupScenario, PickupWorld
 from sim.sea import FloatingObject
@@ -154,7 +155,7 @@ class EvalPickupWorld(PickupWorld):
             marker_size_m=GLYPH_EDGE_M,
         )
         c = f.corners_true_px
-        edge_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+        edge_px = mean_edge_px(c)
         if not f.visible or edge_px < MIN_EDGE_PX:
             return None
         return CameraObservation(t_s, tuple((float(u), float(v)) for u, v in f.corners_px))
@@ -174,7 +175,7 @@ class EvalPickupWorld(PickupWorld):
             t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, at, marker_size_m=self.buoy_diameter_m
         )
         c = f.corners_true_px
-        diameter_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+        diameter_px = mean_edge_px(c)
         if not f.visible or diameter_px < MIN_BUOY_PX:
             return None
         u, v = f.centre_true_px + self.clutter_rng.normal(0.0, BUOY_NOISE_PX, 2)

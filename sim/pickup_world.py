@@ -32,7 +32,7 @@ from app.missions.pickup import RadarCalibrator
 from app.missions.pickup_feeds import CameraObservation, HeightSample, PickupFeeds
 from app.sensors.detect_marker import SEARCH_FULL_MIN_PX, marker_sizes_m
 from app.settings import Settings
-from sim.camera_geometry import GeometricCamera
+from sim.camera_geometry import GeometricCamera, mean_edge_px
 from sim.inproc import InProcessVehicle
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
 
@@ -192,7 +192,7 @@ class PickupWorld:
                 t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, centre_ned_m, marker_size_m=size_m
             )
             c = f.corners_true_px
-            edge_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+            edge_px = mean_edge_px(c)
             if f.visible and edge_px >= MIN_EDGE_PX:
                 return CameraObservation(t_s, tuple((float(u), float(v)) for u, v in f.corners_px), size_m)
         return CameraObservation(t_s)
@@ -206,7 +206,7 @@ class PickupWorld:
             t_s, p, truth.roll_rad, truth.pitch_rad, truth.yaw_rad, centre_ned_m, marker_size_m=self.buoy_diameter_m
         )
         c = f.corners_true_px
-        diameter_px = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+        diameter_px = mean_edge_px(c)
         if not diameter_px >= MIN_BUOY_PX or not (f.visible or self._rim_seen(f.centre_true_px, diameter_px)):
             return CameraObservation(t_s)
         u, v = f.centre_true_px + self.rng.normal(0.0, BUOY_NOISE_PX, 2)

@@ -75,3 +75,15 @@ def test_marker_corners_are_a_square_of_the_given_size_tilted_about_its_centre()
     sides = np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1)
     np.testing.assert_allclose(sides, 0.3, atol=1e-12)
     assert np.ptp(c[:, 2]) > 0.01  # tilted out of the sea plane
+
+
+def test_mean_edge_is_the_apparent_size_to_numpys_last_bit() -> None:
+    from sim.camera_geometry import mean_edge_px
+
+    square = np.array([[100.0, 100.0], [140.0, 100.0], [140.0, 140.0], [100.0, 140.0]])
+    assert mean_edge_px(square) == 40.0
+    assert mean_edge_px(np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 4.0], [0.0, 0.0]])) == 2.5  # 5, 0, 5, 0
+    rng = np.random.default_rng(8)
+    for _ in range(500):
+        c = rng.normal(size=(4, 2)) * 200.0 + 600.0
+        assert mean_edge_px(c) == float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
