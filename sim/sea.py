@@ -305,7 +305,7 @@ class FloatingObject:
     def state(self, t_s: float) -> ObjectTruth:
         """Position, velocity and acceleration at ``t_s``: :meth:`states`' sums for one time, in floats (the
         simulator asks at every camera frame, and numpy's per-call cost was most of it); equal to :meth:`states`'
-        values but for the last bit of a few sums, added in another order."""
+        values within 1e-9 m (a few sums are added in another order, and the float32 phase rounds with them)."""
         sea = self.sea
         (cn, ce), (vn, ve), (an, ae) = sea.current_one(t_s)
         wn, we = sea.windage_drift_ned_mps[0], sea.windage_drift_ned_mps[1]

@@ -86,8 +86,7 @@ def quat_slerp(q0: Iterable[float], q1: Iterable[float], f: float) -> Quat:
         sin_omega = math.sin(omega)
         wa, wb = math.sin((1 - f) * omega), math.sin(f * omega)
         q = tuple((wa * x + wb * y) / sin_omega for x, y in zip(a, b, strict=True))
-    w, x, y, z = _unit4(q)
-    return (w, x, y, z)
+    return _unit4(q)
 
 
 def _unit4(q: Iterable[float]) -> tuple[float, float, float, float]:

@@ -44,11 +44,10 @@ class _Ring:
     append: the fallen-out front is cut off once it is as long as the window). Floats, not numpy: a bracket is
     read a few hundred times per second of flight, a handful of numbers each time."""
 
-    def __init__(self, capacity: int, width: int) -> None:
+    def __init__(self, capacity: int) -> None:
         if capacity < 2:
             raise ValueError("capacity must be at least 2")
         self.capacity = capacity
-        self.width = width
         self._t: list[float] = []
         self._v: list[tuple[float, ...]] = []
         self._start = 0
@@ -100,8 +99,8 @@ class StateHistory:
 
     def __init__(self, capacity: int = DEFAULT_CAPACITY, max_gap_s: float = DEFAULT_MAX_GAP_S) -> None:
         self.max_gap_s = max_gap_s
-        self._pos_vel = _Ring(capacity, 6)
-        self._att = _Ring(capacity, 4)
+        self._pos_vel = _Ring(capacity)
+        self._att = _Ring(capacity)
         self.dropped_out_of_order = 0
         self.dropped_non_finite = 0
         # the last answer of ``at`` and what it was read from (the time, and each stream's newest sample): asked
@@ -134,7 +133,7 @@ class StateHistory:
             return False
         q = quat_from_euler_zyx(a.roll_rad, a.pitch_rad, a.yaw_rad)
         prev = self._att.newest_values()
-        if prev is not None and sum(a * b for a, b in zip(prev, q, strict=True)) < 0.0:  # keep the sign continuous
+        if prev is not None and sum(x * y for x, y in zip(prev, q, strict=True)) < 0.0:  # keep the sign continuous
             q = (-q[0], -q[1], -q[2], -q[3])
         self._att.append(a.t_s, q)
         return True
