@@ -123,13 +123,20 @@ def above_object(ctx: GuardContext) -> bool:
 
 
 def ready_to_descend(ctx: GuardContext) -> bool:
-    """Fresh fix, converged for long enough, right above the object — and the landing authorised, when the
-    mission asks for an operator's authorisation."""
+    """Fresh fix, converged for long enough, right above the object, off the water — and the landing authorised,
+    when the mission asks for an operator's authorisation.
+
+    Off the water: back in TRACK after an off-target touchdown (no grab there: climb back and try again), a vehicle
+    still on the water went straight back to DESCEND, its touchdown fired at once and it grabbed there 0.1 s later
+    — the off-target judgement was undone by a 0.1 s bounce. It must leave the water first. (A go-around up to the
+    safety height before descending again was measured too: over 200 sea-state-3 runs it made more descents, 311
+    contacts with the water against 255, and more of them off the object, 17 against 11.)"""
     e, p = ctx.estimates, ctx.params
     t = e.target
     d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
     converged = e.converged_for_s is not None and e.converged_for_s >= p.descend_converged_s
-    return ctx.land_authorized and _fresh(ctx) and converged and d is not None and d <= p.track_radius_m
+    over = d is not None and d <= p.track_radius_m
+    return ctx.land_authorized and _fresh(ctx) and converged and over and not touchdown(ctx)
 
 
 def target_lost(ctx: GuardContext) -> bool:

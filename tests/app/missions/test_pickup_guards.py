@@ -12,6 +12,7 @@ from app.missions.guards import (
     object_beyond_fence,
     object_in_gripper,
     pickup_time_up,
+    ready_to_descend,
     touchdown,
     touchdown_off_target,
 )
@@ -65,6 +66,17 @@ def test_at_the_water_after_descend_gave_its_final_part_up_is_no_grab():
     assert not touchdown_off_target(ctx(est(**at_water, progress={"final_descent_given_up": 0.0})))
     assert touchdown_off_target(ctx(est(**at_water, progress={"final_descent_given_up": 1.0})))
     assert touchdown(ctx(est(**at_water, progress={"final_descent_given_up": 1.0})))  # it is at the water
+
+
+def test_no_new_descent_from_the_water():
+    """Back in TRACK from an off-target touchdown, a fresh converged fix right above the object is not enough: the
+    vehicle must have left the water (else its touchdown fires again at once and it grabs where it judged it must
+    not)."""
+    assert ready_to_descend(ctx(est(height_above_sea_m=4.0), state="TRACK"))
+    assert ready_to_descend(ctx(est(height_above_sea_m=PARAMS.touchdown_height_m + 0.05), state="TRACK"))
+    assert not ready_to_descend(ctx(est(height_above_sea_m=PARAMS.touchdown_height_m - 0.05), state="TRACK"))
+    assert not ready_to_descend(ctx(est(height_above_sea_m=None, height_over_mean_sea_m=0.2), state="TRACK"))
+    assert not ready_to_descend(ctx(est(height_above_sea_m=4.0), vehicle_ne=(0.5, 0.0), state="TRACK"))  # not over it
 
 
 def test_in_the_gripper_only_after_looking_from_up_there_for_the_verify_time():
