@@ -60,6 +60,8 @@ _ARDUPILOT_DEFAULTS: tuple[tuple[str, float, ParamType], ...] = (
     ("FRAME_CLASS", 1, ParamType.INT8),  # quad
     ("PSC_JERK_XY", 5.0, ParamType.REAL32),  # m/s³, GUIDED's horizontal input shaping (range 1-20)
     ("WPNAV_ACCEL", 250.0, ParamType.REAL32),  # cm/s², GUIDED's horizontal acceleration limit
+    ("PSC_JERK_Z", 5.0, ParamType.REAL32),  # m/s³, GUIDED's vertical input shaping (range 5-50)
+    ("WPNAV_ACCEL_Z", 100.0, ParamType.REAL32),  # cm/s², GUIDED's vertical acceleration limit (range 50-500)
 )
 
 
@@ -140,15 +142,19 @@ class Tuning:
     def takeoff_alt_m(self) -> float:
         return 2.5 if self._ap else self._p.get("MIS_TAKEOFF_ALT")
 
-    def shaping_xy(self) -> tuple[float, float] | None:
-        """ArduCopter GUIDED's horizontal shaping limits: (jerk m/s³, acceleration m/s²); None on PX4. Values
-        outside the documented ranges (PSC_JERK_XY 1-20 m/s³, WPNAV_ACCEL 50-500 cm/s²) are taken at the
-        nearest end (a zero would stop the shaping altogether)."""
+    def shaping(self) -> tuple[float, float, float, float] | None:
+        """ArduCopter GUIDED's shaping limits: (jerk m/s³, acceleration m/s²) horizontally, then vertically; None on
+        PX4. Values outside the documented ranges (PSC_JERK_XY 1-20 m/s³, WPNAV_ACCEL 50-500 cm/s², PSC_JERK_Z
+        5-50 m/s³, WPNAV_ACCEL_Z 50-500 cm/s²) are taken at the nearest end (a zero would stop the shaping)."""
         if not self._ap:
             return None
-        jerk = min(max(self._p.get("PSC_JERK_XY"), 1.0), 20.0)
-        accel_cm = min(max(self._p.get("WPNAV_ACCEL"), 50.0), 500.0)
-        return jerk, accel_cm / 100.0
+        get = self._p.get
+        return (
+            min(max(get("PSC_JERK_XY"), 1.0), 20.0),
+            min(max(get("WPNAV_ACCEL"), 50.0), 500.0) / 100.0,
+            min(max(get("PSC_JERK_Z"), 5.0), 50.0),
+            min(max(get("WPNAV_ACCEL_Z"), 50.0), 500.0) / 100.0,
+        )
 
     def offboard_loss_s(self) -> float:
         return self._p.get("GUID_TIMEOUT") if self._ap else self._p.get("COM_OF_LOSS_T")

@@ -309,11 +309,26 @@ class Dynamics:
         sh = self._shaper
         return None if sh is None else (sh.params.jerk_xy_mps3, sh.params.accel_xy_mps2)
 
-    def set_shaping_xy(self, jerk_mps3: float, accel_mps2: float) -> None:
-        """ArduCopter's horizontal shaping limits (PSC_JERK_XY, WPNAV_ACCEL) from now on; no-op without it."""
+    @property
+    def shaping_z(self) -> tuple[float, float] | None:
+        """ArduCopter's vertical shaping limits in use: (jerk m/s³, acceleration m/s²); None without it."""
         sh = self._shaper
-        if sh is not None and (sh.params.jerk_xy_mps3, sh.params.accel_xy_mps2) != (jerk_mps3, accel_mps2):
-            sh.params = replace(sh.params, jerk_xy_mps3=jerk_mps3, accel_xy_mps2=accel_mps2)
+        return None if sh is None else (sh.params.jerk_z_mps3, sh.params.accel_z_mps2)
+
+    def set_shaping(self, jerk_xy_mps3: float, accel_xy_mps2: float, jerk_z_mps3: float, accel_z_mps2: float) -> None:
+        """ArduCopter's shaping limits (PSC_JERK_XY, WPNAV_ACCEL, PSC_JERK_Z, WPNAV_ACCEL_Z) from now on; no-op
+        without it."""
+        sh = self._shaper
+        if sh is not None:
+            new = replace(
+                sh.params,
+                jerk_xy_mps3=jerk_xy_mps3,
+                accel_xy_mps2=accel_xy_mps2,
+                jerk_z_mps3=jerk_z_mps3,
+                accel_z_mps2=accel_z_mps2,
+            )
+            if new != sh.params:
+                sh.params = new
 
     def reset_integrators(self) -> None:
         self._vel_int = [0.0, 0.0, 0.0]

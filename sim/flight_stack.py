@@ -328,11 +328,11 @@ class FlightStack:
         self._auto_disarm(t_s)
 
     def _apply_params(self) -> None:
-        """Parameters the physics reads (a PARAM_SET takes effect at the next tick): ArduCopter's shaping."""
+        """Parameters the physics reads (a PARAM_SET takes effect at the next tick): ArduCopter's shaping limits."""
         self._params_version = self.params.version
-        shaping = self.tuning.shaping_xy()
+        shaping = self.tuning.shaping()
         if shaping is not None:
-            self.dyn.set_shaping_xy(*shaping)
+            self.dyn.set_shaping(*shaping)
 
     def _failsafes(self, t_s: float) -> None:
         loss = setpoint_loss(self.mode, self._guided_sub, self._sp, t_s - self._sp_t_s, self.tuning.offboard_loss_s())

@@ -225,7 +225,21 @@ def test_ardupilot_shaping_limits_follow_their_params_within_the_documented_rang
     assert fs.params.set("PSC_JERK_XY", 0.0) and fs.params.set("WPNAV_ACCEL", 9000.0)
     fs.step(0.3)
     assert fs.dyn.shaping_xy == (1.0, 5.0)  # the ends of the ranges (1-20 m/s³, 50-500 cm/s²)
-    assert Harness(Profile.PX4).fs.tuning.shaping_xy() is None
+    assert Harness(Profile.PX4).fs.tuning.shaping() is None
+
+
+def test_ardupilot_vertical_shaping_limits_follow_their_params_within_the_documented_ranges() -> None:
+    fs = FlightStack(Dynamics(airframes.ARDUCOPTER, Wind(WindConfig.off(), seed=1)), Profile.ARDUPILOT)
+    fs.step(0.0)
+    fs.step(0.1)
+    assert fs.dyn.shaping_z == (5.0, 1.0)  # PSC_JERK_Z 5 m/s³, WPNAV_ACCEL_Z 100 cm/s²
+    assert fs.params.set("PSC_JERK_Z", 30.0) and fs.params.set("WPNAV_ACCEL_Z", 250.0)
+    fs.step(0.2)
+    assert fs.dyn.shaping_z == (30.0, 2.5) and fs.dyn.shaping_xy == (5.0, 2.5)  # the horizontal ones untouched
+    assert fs.params.set("PSC_JERK_Z", 1.0) and fs.params.set("WPNAV_ACCEL_Z", 9000.0)
+    fs.step(0.3)
+    assert fs.dyn.shaping_z == (5.0, 5.0)  # the ends of the ranges (5-50 m/s³, 50-500 cm/s²)
+    assert Harness(Profile.PX4).fs.dyn.shaping_z is None
 
 
 # -- ArduCopter profile ---------------------------------------------------------------------------

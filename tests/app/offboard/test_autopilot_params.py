@@ -1,5 +1,5 @@
 """Parameters the settings set on the autopilot before arming (``guidance.<autopilot>.autopilot_params``):
-ArduPilot's PSC_JERK_XY, over MAVLink and in process, as the vehicle sees them."""
+ArduPilot's PSC_JERK_XY, PSC_JERK_Z and WPNAV_ACCEL_Z, over MAVLink and in process, as the vehicle sees them."""
 
 from __future__ import annotations
 
@@ -83,6 +83,39 @@ async def test_a_higher_jerk_limit_answers_a_velocity_step_sooner():
     slow, fast = await velocity_after(5.0, 0.6), await velocity_after(20.0, 0.6)
     print(f"0.6 s into a 1 m/s step: {slow:.2f} m/s with PSC_JERK_XY 5, {fast:.2f} m/s with 20")
     assert fast > slow + 0.15
+
+
+async def climb_after(params: dict[str, float], after_s: float) -> tuple[float, float]:
+    """Climb rate (m/s, up) of the simulated ArduCopter ``after_s`` into a 0 → 1.5 m/s climb setpoint step in
+    GUIDED while descending at 0.5 m/s (a vehicle giving up a descent to the sea), and how far it sank first (m)."""
+    vehicle = InProcessVehicle(profile=Profile.ARDUPILOT, wind=WindConfig.off(), params=params)
+    await vehicle.wait_ready(10.0)
+    await vehicle.arm()
+    await vehicle.takeoff(5.0)
+    await asyncio.sleep(8.0)
+    await vehicle.start_offboard(0.0)
+    for _ in range(150):  # 3 s down at 0.5 m/s
+        await vehicle.set_velocity_ned((0.0, 0.0, 0.5), 0.0)
+        await asyncio.sleep(0.02)
+    down_at_step_m = deepest_m = vehicle.truth().pos_ned_m[2]
+    t_end = asyncio.get_running_loop().time() + after_s
+    while asyncio.get_running_loop().time() < t_end:
+        await vehicle.set_velocity_ned((0.0, 0.0, -1.5), 0.0)
+        await asyncio.sleep(0.02)
+        deepest_m = max(deepest_m, vehicle.truth().pos_ned_m[2])
+    return -vehicle.truth().vel_ned_mps[2], deepest_m - down_at_step_m
+
+
+@LOOPTIME
+async def test_higher_vertical_limits_turn_a_descent_into_a_climb_sooner_and_sink_less():
+    default = await climb_after({}, 0.8)
+    agile = await climb_after({"PSC_JERK_Z": 50.0, "WPNAV_ACCEL_Z": 500.0}, 0.8)
+    print(
+        f"0.8 s into a climb from 0.5 m/s down: {default[0]:.2f} m/s up, sank {default[1]:.3f} m with ArduCopter's"
+        f" defaults (5 m/s³, 100 cm/s²); {agile[0]:.2f} m/s up, sank {agile[1]:.3f} m with 50 m/s³, 500 cm/s²"
+    )
+    assert default[0] < 0.3 and default[1] > 0.1  # 1 m/s²: still not climbing much, sank on for a decimetre
+    assert agile[0] > default[0] + 0.8 and agile[1] < default[1] / 2
 
 
 async def test_over_mavlink_mavsdk_sets_it_and_the_simulated_ardupilot_flies_with_it(tmp_path):
