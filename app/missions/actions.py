@@ -205,6 +205,7 @@ async def start_descend(io: MissionIO) -> None:
         p.final_max_speed_mps,
         math.inf if p.final_blind_gap_s is None else p.final_blind_gap_s,
         math.inf if p.final_max_lead_m is None else p.final_max_lead_m,
+        p.crest_clearance_m,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

@@ -111,6 +111,13 @@ class MissionParams(BaseModel):
     crest_margin_m: float = Field(
         0.5, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
     )
+    crest_clearance_m: float = Field(
+        0.0,
+        ge=0.0,
+        le=5.0,
+        description="in DESCEND, not going down onto the object: the radar sees the water closer than this under "
+        "the vehicle → aim higher by as much (a crest rising under it lifts it); 0: off, m",
+    )
     descend_max_lead_m: float = Field(
         0.5, ge=0.1, le=5.0, description="the desired height leads the vehicle's own down by at most this, m"
     )

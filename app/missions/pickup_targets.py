@@ -191,7 +191,10 @@ class DescendTarget(ObjectTarget):
     would otherwise come down at the envelope's full speed; in the final part by no more than
     ``final_max_lead_m`` (0.5 m of lead there asked for 1 m/s down, and an ArduCopter coming down at that,
     accelerating upwards at about 1 m/s², sank on for up to 0.5 m when it had to climb back: into the water,
-    off the object)."""
+    off the object). Whenever it is not going down onto the object (waiting for the final part, climbing back), a
+    crest that the radar sees rising under it closer than ``crest_clearance_m`` lifts it: waiting at the final
+    height, a crest above the highest of the last minute reached it, and climbing back from low down, the water
+    rose faster than the vehicle."""
 
     name = "descend"
 
@@ -212,6 +215,7 @@ class DescendTarget(ObjectTarget):
         final_max_speed_mps: float = math.inf,
         blind_gap_s: float = math.inf,
         final_max_lead_m: float = math.inf,
+        crest_clearance_m: float = 0.0,
     ) -> None:
         super().__init__(model, telemetry, start_height_m)
         self.speed_mps = speed_mps
@@ -226,6 +230,7 @@ class DescendTarget(ObjectTarget):
         self.final_max_speed_mps = final_max_speed_mps
         self.blind_gap_s = blind_gap_s
         self.final_max_lead_m = min(final_max_lead_m, max_lead_m)
+        self.crest_clearance_m = crest_clearance_m
         self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
         self.go_arounds = 0  # final descents given up for drifting off the object
         self.plunging = False  # in the final part, right over the object
@@ -289,7 +294,15 @@ class DescendTarget(ObjectTarget):
         # aim at the object now, its velocity fed forward: aiming at a prediction of it at touchdown (up to 1 s
         # ahead) put the vehicle up to half a wave orbit off and lost the marker low (sea state 2: 0 of 3
         # seeds picked up with the lead, 20 of 20 without)
-        return self._aim(t_s, self.height_m)
+        return self._aim(t_s, self._clear_of_crests(self.height_m, vehicle_m, snap.height_above_sea_m))
+
+    def _clear_of_crests(self, height_m: float, vehicle_m: float | None, radar_m: float | None) -> float:
+        """The height to aim at this tick: ``height_m``, raised while the vehicle is not going down onto the object
+        and the radar sees the water under it closer than ``crest_clearance_m`` (a crest rising under it lifts it;
+        the next tick aims at ``height_m`` again)."""
+        if self.plunging or radar_m is None or vehicle_m is None or radar_m >= self.crest_clearance_m:
+            return height_m
+        return max(height_m, vehicle_m + self.crest_clearance_m - radar_m)
 
     def _off_the_object(self, t_s: float) -> tuple[float, float]:
         """How far the vehicle is off the estimate (m, horizontal) and how fast it moves relative to it (m/s)."""

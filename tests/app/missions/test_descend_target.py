@@ -31,12 +31,13 @@ class Scene:
         self.vehicle_height_m = 4.0
         self.drift: tuple[tuple[float, float], tuple[float, float]] | None = None  # the filter's mean drift
         self.last_fix_t_s: float | None = None  # None: a new fix (0.05 s old) every tick; else no fix since
+        self.radar_m: float | None = None  # the radar's height over the water under the vehicle (None: not seen)
 
     # -- what DescendTarget reads --
     def snapshot(self, t_s: float) -> Estimates:
         age_s = 0.05 if self.last_fix_t_s is None else t_s - self.last_fix_t_s
         return Estimates(
-            t_s, fix_age_s=age_s, converged_for_s=5.0, height_above_sea_m=None,
+            t_s, fix_age_s=age_s, converged_for_s=5.0, height_above_sea_m=self.radar_m,
             height_over_mean_sea_m=self.vehicle_height_m,
         )  # fmt: skip
 
@@ -213,3 +214,31 @@ def test_going_blind_right_over_the_object_it_goes_on_down_to_the_water():
     low_m = target.height_m
     fly(target, scene, t_s, 0.15)
     assert target.plunging and target.height_m < low_m
+
+
+def test_a_crest_rising_under_a_vehicle_waiting_for_the_final_part_lifts_it_and_then_it_comes_back():
+    scene = Scene(crest_m=0.7)
+    target = descend(scene, crest_clearance_m=0.8)
+    scene.vehicle_ne = (0.15, 0.0)  # not over the object: it waits at the final height
+    t_s = fly(target, scene, 100.0, 10.0)
+    final_m = target.final_height_now_m()
+    assert not target.plunging and target.height_m == final_m and scene.vehicle_height_m == pytest.approx(final_m)
+    scene.radar_m = 0.5  # a crest 0.3 m closer than the clearance under it
+    state = target.target_at(t_s + DT)
+    assert state is not None and -state.pos_ned_m[2] == pytest.approx(final_m + 0.3)
+    assert target.height_m == final_m  # only this tick's aim: the desired height itself stays
+    scene.radar_m = final_m  # the crest has passed
+    state = target.target_at(t_s + 2 * DT)
+    assert state is not None and -state.pos_ned_m[2] == pytest.approx(final_m)
+
+
+def test_going_down_onto_the_object_the_water_close_under_it_does_not_lift_it():
+    scene = Scene(crest_m=0.2)
+    target = descend(scene, crest_clearance_m=0.8)
+    t_s = fly(target, scene, 100.0, 7.0)  # over the object: into the final part
+    assert target.plunging
+    scene.radar_m = 0.4
+    low_m = target.height_m
+    state = target.target_at(t_s + DT)
+    assert state is not None and target.plunging and -state.pos_ned_m[2] == pytest.approx(target.height_m)
+    assert target.height_m < low_m

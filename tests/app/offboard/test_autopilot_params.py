@@ -32,19 +32,22 @@ def param_records(vehicle: InProcessVehicle) -> list[tuple[str, float]]:
 
 
 @LOOPTIME
-async def test_ardupilot_gets_psc_jerk_xy_20_and_its_shaping_uses_it_px4_gets_nothing():
+async def test_ardupilot_gets_its_shaping_limits_and_flies_with_them_px4_gets_nothing():
     events = EventLog(None)
     logged: list[dict[str, object]] = []
     events.subscribe({"run"}, logged.append)
     ap = InProcessVehicle(profile=Profile.ARDUPILOT, wind=WindConfig.off())
     await ap.wait_ready(10.0)
     assert ap.stack.dyn.shaping_xy == (5.0, 2.5)  # ArduCopter's defaults: PSC_JERK_XY 5, WPNAV_ACCEL 250 cm/s²
+    assert ap.stack.dyn.shaping_z == (5.0, 1.0)  # PSC_JERK_Z 5, WPNAV_ACCEL_Z 100 cm/s²
     await set_autopilot_params(ap, load_settings(), LoopClock(), events)
     await asyncio.sleep(0.01)
     ap.truth()  # the physics brought up to now: the next tick took it
-    assert param_records(ap) == [("PSC_JERK_XY", 20.0)]  # the vehicle's own log
+    wanted = [("PSC_JERK_XY", 20.0), ("PSC_JERK_Z", 50.0), ("WPNAV_ACCEL_Z", 500.0)]
+    assert param_records(ap) == wanted  # the vehicle's own log
     assert ap.stack.params.get("PSC_JERK_XY") == 20.0 and ap.stack.dyn.shaping_xy == (20.0, 2.5)
-    assert [(r["name"], r["value"]) for r in logged if r.get("event") == "param_set"] == [("PSC_JERK_XY", 20.0)]
+    assert ap.stack.dyn.shaping_z == (50.0, 5.0)
+    assert [(r["name"], r["value"]) for r in logged if r.get("event") == "param_set"] == wanted
 
     px4 = InProcessVehicle(profile=Profile.PX4, wind=WindConfig.off())
     await px4.wait_ready(10.0)
@@ -125,6 +128,6 @@ async def test_over_mavlink_mavsdk_sets_it_and_the_simulated_ardupilot_flies_wit
     async with app_vehicle_on_sim(settings, clock, events, **config) as (sim, vehicle):
         assert sim.stack.dyn.shaping_xy == (5.0, 2.5)
         await set_autopilot_params(vehicle, settings, clock, events)
-        await eventually(lambda: sim.stack.dyn.shaping_xy == (20.0, 2.5), 2.0)
+        await eventually(lambda: (sim.stack.dyn.shaping_xy, sim.stack.dyn.shaping_z) == ((20.0, 2.5), (50.0, 5.0)), 2.0)
     params = [(r["name"], r["value"]) for r in map(json.loads, log.read_text().splitlines()) if r["event"] == "param"]
-    assert params == [("PSC_JERK_XY", 20.0)]
+    assert params == [("PSC_JERK_XY", 20.0), ("PSC_JERK_Z", 50.0), ("WPNAV_ACCEL_Z", 500.0)]
