@@ -214,32 +214,32 @@ def test_px4_params_use_bytewise_int_encoding_and_ardupilot_a_cast() -> None:
     assert q is not None and ap.encode(q) == 1500.0
 
 
-def test_ardupilot_shaping_limits_follow_their_params_within_the_documented_ranges() -> None:
+@pytest.mark.parametrize(
+    ("jerk", "accel", "shaping", "defaults", "ranges_ends"),
+    [
+        # PSC_JERK_XY 5 m/s³, WPNAV_ACCEL 250 cm/s²; documented ranges 1-20 m/s³, 50-500 cm/s²
+        ("PSC_JERK_XY", "WPNAV_ACCEL", "shaping_xy", (5.0, 2.5), (1.0, 5.0)),
+        # PSC_JERK_Z 5 m/s³, WPNAV_ACCEL_Z 100 cm/s²; documented ranges 5-50 m/s³, 50-500 cm/s²
+        ("PSC_JERK_Z", "WPNAV_ACCEL_Z", "shaping_z", (5.0, 1.0), (5.0, 5.0)),
+    ],
+)
+def test_ardupilot_shaping_limits_follow_their_params_within_the_documented_ranges(
+    jerk: str, accel: str, shaping: str, defaults: tuple[float, float], ranges_ends: tuple[float, float]
+) -> None:
     fs = FlightStack(Dynamics(airframes.ARDUCOPTER, Wind(WindConfig.off(), seed=1)), Profile.ARDUPILOT)
+    other = "shaping_z" if shaping == "shaping_xy" else "shaping_xy"
     fs.step(0.0)
     fs.step(0.1)
-    assert fs.dyn.shaping_xy == (5.0, 2.5)  # PSC_JERK_XY 5 m/s³, WPNAV_ACCEL 250 cm/s²
-    assert fs.params.set("PSC_JERK_XY", 12.0) and fs.params.set("WPNAV_ACCEL", 400.0)
+    untouched = getattr(fs.dyn, other)
+    assert getattr(fs.dyn, shaping) == defaults
+    assert fs.params.set(jerk, 12.0) and fs.params.set(accel, 400.0)
     fs.step(0.2)
-    assert fs.dyn.shaping_xy == (12.0, 4.0)
-    assert fs.params.set("PSC_JERK_XY", 0.0) and fs.params.set("WPNAV_ACCEL", 9000.0)
+    assert getattr(fs.dyn, shaping) == (12.0, 4.0) and getattr(fs.dyn, other) == untouched
+    assert fs.params.set(jerk, 0.0) and fs.params.set(accel, 9000.0)
     fs.step(0.3)
-    assert fs.dyn.shaping_xy == (1.0, 5.0)  # the ends of the ranges (1-20 m/s³, 50-500 cm/s²)
-    assert Harness(Profile.PX4).fs.tuning.shaping() is None
-
-
-def test_ardupilot_vertical_shaping_limits_follow_their_params_within_the_documented_ranges() -> None:
-    fs = FlightStack(Dynamics(airframes.ARDUCOPTER, Wind(WindConfig.off(), seed=1)), Profile.ARDUPILOT)
-    fs.step(0.0)
-    fs.step(0.1)
-    assert fs.dyn.shaping_z == (5.0, 1.0)  # PSC_JERK_Z 5 m/s³, WPNAV_ACCEL_Z 100 cm/s²
-    assert fs.params.set("PSC_JERK_Z", 30.0) and fs.params.set("WPNAV_ACCEL_Z", 250.0)
-    fs.step(0.2)
-    assert fs.dyn.shaping_z == (30.0, 2.5) and fs.dyn.shaping_xy == (5.0, 2.5)  # the horizontal ones untouched
-    assert fs.params.set("PSC_JERK_Z", 1.0) and fs.params.set("WPNAV_ACCEL_Z", 9000.0)
-    fs.step(0.3)
-    assert fs.dyn.shaping_z == (5.0, 5.0)  # the ends of the ranges (5-50 m/s³, 50-500 cm/s²)
-    assert Harness(Profile.PX4).fs.dyn.shaping_z is None
+    assert getattr(fs.dyn, shaping) == ranges_ends
+    px4 = Harness(Profile.PX4).fs
+    assert px4.tuning.shaping() is None and getattr(px4.dyn, shaping) is None
 
 
 # -- ArduCopter profile ---------------------------------------------------------------------------
