@@ -17,11 +17,12 @@ import numpy as np
 import pytest
 from numpy.typing import ArrayLike, NDArray
 
+from app.estimators.apparent_size import apparent_size_ratio
 from app.estimators.factory import make_target_filter
 from app.estimators.triangulation import SeaPlaneTriangulator
 from app.messages import AttitudeEuler, PositionVelocityNed
 from app.missions.params import MissionParams
-from app.missions.pickup import PickupEstimates, apparent_size_ratio
+from app.missions.pickup import PickupEstimates
 from app.sensors.camera import ExposureControls
 from app.sensors.detect import make_detector
 from app.settings import Settings

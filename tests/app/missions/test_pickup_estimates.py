@@ -226,8 +226,8 @@ async def test_a_buoy_is_fixed_from_its_centre_and_a_round_float_twice_its_size_
 def test_the_sphere_size_ratio_is_one_for_the_buoy_from_any_height_and_place_on_the_image():
     camera = GeometricCamera(CAM, marker_size_m=0.15, pixel_noise_std_px=0.0)
     tri = SeaPlaneTriangulator.from_settings(CAM)
+    from app.estimators.apparent_size import sphere_size_ratio
     from app.messages import VehicleStateNed
-    from app.missions.pickup import sphere_size_ratio
 
     for height_m, (n_m, e_m) in [(10.0, (0.0, 0.0)), (10.0, (2.5, 3.0)), (3.0, (0.6, -0.8)), (1.0, (0.1, 0.1))]:
         f = camera.frame(0.0, (0.0, 0.0, -height_m), 0.0, 0.0, 0.0, (n_m, e_m, 0.0))
