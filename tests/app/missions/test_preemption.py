@@ -19,7 +19,7 @@ from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.settings import Settings
 from sim.autopilot_modes import Profile
-from sim.faults import FaultyVehicle, stall_loop
+from sim.faulty_vehicle import FaultyVehicle, stall_loop
 from sim.wind import WindConfig
 
 LOOPTIME = pytest.mark.looptime(noop_cycles=2)
