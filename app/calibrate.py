@@ -26,8 +26,9 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 
 from app.cli import OneLineParser, number, run_cli
+from app.config_yaml import load_yaml
 from app.errors import AppError
-from app.settings import CameraSettings, load_yaml
+from app.settings import CameraSettings
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm")
 COVERAGE_GRID = (8, 6)  # columns × rows of image cells that the corners should reach

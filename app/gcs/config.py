@@ -20,9 +20,9 @@ from urllib.parse import urlsplit
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from app.config_yaml import format_validation_error
 from app.errors import ConfigError
 from app.gcs.protocol import VEHICLE_ID_PATTERN, Topics
-from app.settings import format_validation_error
 
 DEFAULT_PORTS = {"mqtt": 1883, "mqtts": 8883}
 _ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")

@@ -25,11 +25,11 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from app.config_yaml import format_validation_error, load_yaml
 from app.errors import MissionTableError
 from app.missions.actions import ACTIONS
 from app.missions.guards import GUARDS, LINK_GUARDS
 from app.missions.params import MissionParams
-from app.settings import format_validation_error, load_yaml
 
 MISSIONS_DIR = Path(__file__).resolve().parent
 

@@ -15,11 +15,12 @@ from dataclasses import asdict
 from pathlib import Path
 
 from app.cli import OneLineParser, number, run_cli
+from app.config_yaml import validate_section
 from app.errors import AppError
 from app.sensors.radar import Radar
 from app.sensors.x4m03_driver import X4M03Radar
 from app.sensors.x4m03_recording import RecordingWriter, read_recording
-from app.settings import RadarSettings, validate_section
+from app.settings import RadarSettings
 
 
 async def record(radar: Radar, out: Path, frames: int, header: dict[str, object]) -> int:

@@ -9,12 +9,13 @@ from collections.abc import AsyncIterator, Callable
 import numpy as np
 import pytest
 
+from app.config_yaml import validate_section
 from app.errors import ConfigError
 from app.messages import RadarFrame
 from app.sensors.radar import RadarCommandError, RadarDisconnected, RadarTimeout
 from app.sensors.x4m03_commands import X4Param
 from app.sensors.x4m03_driver import X4M03Radar
-from app.settings import RadarSettings, validate_section
+from app.settings import RadarSettings
 from sim.radar import RadarEmulator, sea_emulator
 from sim.radar_firmware import FirmwareConfig
 from sim.radar_track import hover
