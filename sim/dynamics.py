@@ -320,15 +320,13 @@ class Dynamics:
         without it."""
         sh = self._shaper
         if sh is not None:
-            new = replace(
+            sh.params = replace(
                 sh.params,
                 jerk_xy_mps3=jerk_xy_mps3,
                 accel_xy_mps2=accel_xy_mps2,
                 jerk_z_mps3=jerk_z_mps3,
                 accel_z_mps2=accel_z_mps2,
             )
-            if new != sh.params:
-                sh.params = new
 
     def reset_integrators(self) -> None:
         self._vel_int = [0.0, 0.0, 0.0]
