@@ -4,8 +4,8 @@ Like PX4 SITL it *sends* to a UDP address where MAVSDK listens (``udpin://0.0.0.
 socket and answers from that same socket: MAVLink 2, sysid 1, compid 1. A second socket, the pilot/GCS
 port (bound on 127.0.0.1), takes mode switches from a pilot tool (``sim.pilot``) and heartbeats back to
 whoever spoke to it (both in ``sim.autopilot_link``). One thread does everything on the wall clock
-(``time.monotonic``): it wakes at ``tick_hz`` (and on every packet), steps the physics in 5 ms substeps
-(200 Hz), sends the telemetry streams that are due and answers commands as they arrive. See
+(``time.monotonic``): it wakes at ``tick_hz`` (and on every packet), steps the physics in 10 ms substeps
+(100 Hz), sends the telemetry streams that are due and answers commands as they arrive. See
 ``sim.state_log`` for the JSON-lines log and ``sim.autopilot`` for the command line.
 
 Embedded (tests)::
@@ -57,7 +57,7 @@ class SimConfig:
     wind: WindConfig = field(default_factory=WindConfig)
     origin: GeoPoint = DEFAULT_ORIGIN
     state_log: str | None = None
-    tick_hz: float = 100.0  # wake-ups of the loop; the physics substeps at 200 Hz within each
+    tick_hz: float = 100.0  # wake-ups of the loop; the physics substeps at 100 Hz within each
     gps_fix_delay_s: float = 1.0
     params: dict[str, float] | None = None
     airframe: MultirotorParams | None = None  # None: the calibrated airframe for ``profile`` (sim.airframes)

@@ -35,8 +35,10 @@ Presets (``ESTIMATORS``):
 from __future__ import annotations
 
 import math
-import random
+import zlib
 from dataclasses import dataclass
+
+import numpy as np
 
 from sim.wind import Vec3
 
@@ -79,20 +81,45 @@ PX4_SIH = EstimatorErrorParams(
 ESTIMATORS: dict[str, EstimatorErrorParams] = {"perfect": PERFECT, "gnss": GNSS, "px4-sih": PX4_SIH}
 
 
-class _GaussMarkov:
-    def __init__(self, sigma: float, tau_s: float, rng: random.Random) -> None:
-        self.sigma, self.tau_s, self._gauss = sigma, tau_s, rng.gauss
-        self.x = rng.gauss(0.0, sigma) if sigma > 0.0 else 0.0
-        self._dt_s, self._a, self._b = math.nan, 0.0, 0.0  # a = e^{−dt/τ} and σ·√(1 − a²) for the last dt
+_BATCH = 1024  # normal draws made at a time (one per process per step)
 
-    def step(self, dt_s: float) -> float:
-        if self.sigma > 0.0:
-            if dt_s != self._dt_s:
-                a = math.exp(-dt_s / self.tau_s)
-                self._dt_s, self._a, self._b = dt_s, a, self.sigma * math.sqrt(1.0 - a * a)
-            # x ← x·a + σ·√(1 − a²)·N(0, 1)
-            self.x = self.x * self._a + self._b * self._gauss(0.0, 1.0)
-        return self.x
+
+class _GaussMarkovBank:
+    """Gauss–Markov processes stepped together, their N(0, 1) draws taken from ``rng`` a batch at a time (a step
+    costs one list lookup per process, not a call into the generator): ``x ← x·a + σ·√(1 − a²)·w``."""
+
+    def __init__(self, sigmas: tuple[float, ...], taus_s: tuple[float, ...], rng: np.random.Generator) -> None:
+        self.sigmas, self.taus_s, self._rng = sigmas, taus_s, rng
+        # stationary from the start: x drawn from N(0, σ²)
+        self.x = [s * w for s, w in zip(sigmas, rng.standard_normal(len(sigmas)).tolist(), strict=True)]
+        self._draws: list[list[float]] = []
+        self._next = 0
+        self._dt_s = math.nan
+        self._coefficients: list[tuple[int, float, float]] = []  # (process, a = e^{−dt/τ}, σ·√(1 − a²)), σ > 0
+
+    def step(self, dt_s: float) -> list[float]:
+        if dt_s != self._dt_s:
+            self._dt_s = dt_s
+            self._coefficients = []
+            for i, (sigma, tau_s) in enumerate(zip(self.sigmas, self.taus_s, strict=True)):
+                if sigma > 0.0:
+                    a = math.exp(-dt_s / tau_s)
+                    self._coefficients.append((i, a, sigma * math.sqrt(1.0 - a * a)))
+        if not self._coefficients:
+            return self.x
+        if self._next >= len(self._draws):
+            self._draws = self._rng.standard_normal((_BATCH, len(self.sigmas))).tolist()
+            self._next = 0
+        w = self._draws[self._next]
+        self._next += 1
+        x = self.x
+        for i, a, b in self._coefficients:
+            x[i] = x[i] * a + b * w[i]
+        return x
+
+
+def _rng(name: str) -> np.random.Generator:
+    return np.random.default_rng(zlib.crc32(name.encode()))
 
 
 class EstimatorError:
@@ -100,39 +127,36 @@ class EstimatorError:
 
     def __init__(self, params: EstimatorErrorParams, seed: int = 0) -> None:
         self.params = params
-        rng = random.Random(f"estimator-{seed}")
         (sh, sv), (th, tv) = params.vel_sigma_mps, params.vel_tau_s
-        self._vel = [_GaussMarkov(sh, th, rng), _GaussMarkov(sh, th, rng), _GaussMarkov(sv, tv, rng)]
         rh, rv = params.drift_rate_sigma_mps
         tr = params.drift_rate_tau_s
-        self._rate = [_GaussMarkov(rh, tr, rng), _GaussMarkov(rh, tr, rng), _GaussMarkov(rv, tr, rng)]
+        # velocity error north/east/down, then the drift rates north/east/down
+        self._vel_rate = _GaussMarkovBank((sh, sh, sv, rh, rh, rv), (th, th, tv, tr, tr, tr), _rng(f"estimator-{seed}"))
         self.pos_err_m = [0.0, 0.0, 0.0]
-        self._axes = tuple(zip(self._vel, self._rate, strict=True))  # stepped in this order: the draws' order
-        tilt_rng = random.Random(f"estimator-tilt-{seed}")  # its own stream: the others' draws stay as they were
-        self._tilt = (
-            _GaussMarkov(params.tilt_sigma_rad, params.tilt_tau_s, tilt_rng),
-            _GaussMarkov(params.tilt_sigma_rad, params.tilt_tau_s, tilt_rng),
-        )
+        # its own stream: the others' draws stay as they are with or without it
+        ts, tt = params.tilt_sigma_rad, params.tilt_tau_s
+        self._tilt = _GaussMarkovBank((ts, ts), (tt, tt), _rng(f"estimator-tilt-{seed}"))
 
     @property
     def vel_err_mps(self) -> Vec3:
-        b = self.params.vel_bias_ned_mps
-        return (self._vel[0].x + b[0], self._vel[1].x + b[1], self._vel[2].x + b[2])
+        b, x = self.params.vel_bias_ned_mps, self._vel_rate.x
+        return (x[0] + b[0], x[1] + b[1], x[2] + b[2])
 
     @property
     def tilt_err_rad(self) -> tuple[float, float]:
         """The reported roll and pitch minus the true ones, rad."""
-        return self._tilt[0].x, self._tilt[1].x
+        x = self._tilt.x
+        return x[0], x[1]
 
     def step(self, dt_s: float) -> None:
         leak = self.params.drift_leak_tau_s
         e_p = self.pos_err_m
-        for i, (vel, rate) in enumerate(self._axes):
-            vel.step(dt_s)
-            # ė_p = ṙ − e_p / τ_leak
-            e_p[i] += (rate.step(dt_s) - e_p[i] / leak) * dt_s
-        for tilt in self._tilt:
-            tilt.step(dt_s)
+        x = self._vel_rate.step(dt_s)
+        # ė_p = ṙ − e_p / τ_leak
+        e_p[0] += (x[3] - e_p[0] / leak) * dt_s
+        e_p[1] += (x[4] - e_p[1] / leak) * dt_s
+        e_p[2] += (x[5] - e_p[2] / leak) * dt_s
+        self._tilt.step(dt_s)
 
     def apply(self, pos_ned_m: Vec3, vel_ned_mps: Vec3) -> tuple[Vec3, Vec3]:
         e_p, e_v = self.pos_err_m, self.vel_err_mps

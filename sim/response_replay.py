@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.dynamics import ControlInput, Dynamics, MultirotorParams
+from sim.flight_stack import PHYSICS_DT_S
 
 
 @dataclass(frozen=True)
@@ -47,8 +48,8 @@ def load(path: Path) -> Recording:
     )
 
 
-def replay(rec: Recording, params: MultirotorParams, dt_s: float = 0.005) -> np.ndarray:
-    """The simulated velocity at every tick (n × 3)."""
+def replay(rec: Recording, params: MultirotorParams, dt_s: float = PHYSICS_DT_S) -> np.ndarray:
+    """The simulated velocity at every tick (n × 3), the physics stepped at ``dt_s`` (the flight stack's rate)."""
     dyn = Dynamics(params, pos_ned_m=(0.0, 0.0, -5.0), yaw_rad=rec.yaw_rad)
     dyn.start_airborne(tuple(rec.velocity[0]))
     out = np.empty_like(rec.velocity)
@@ -63,9 +64,9 @@ def replay(rec: Recording, params: MultirotorParams, dt_s: float = 0.005) -> np.
     return out
 
 
-def residual_rms(rec: Recording, params: MultirotorParams) -> tuple[float, float, float]:
+def residual_rms(rec: Recording, params: MultirotorParams, dt_s: float = PHYSICS_DT_S) -> tuple[float, float, float]:
     """RMS of simulated − reported velocity per axis (n, e, d), landing excluded."""
     keep = rec.segment != "land"
-    r = replay(rec, params)[keep] - rec.velocity[keep]
+    r = replay(rec, params, dt_s)[keep] - rec.velocity[keep]
     n, e, d = (math.sqrt(float(np.mean(r[:, i] ** 2))) for i in range(3))
     return n, e, d
