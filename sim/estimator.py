@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.noise import NormalBatches
 from sim.wind import Vec3
 
 
@@ -89,11 +90,10 @@ class _GaussMarkovBank:
     costs one list lookup per process, not a call into the generator): ``x ← x·a + σ·√(1 − a²)·w``."""
 
     def __init__(self, sigmas: tuple[float, ...], taus_s: tuple[float, ...], rng: np.random.Generator) -> None:
-        self.sigmas, self.taus_s, self._rng = sigmas, taus_s, rng
+        self.sigmas, self.taus_s = sigmas, taus_s
         # stationary from the start: x drawn from N(0, σ²)
         self.x = [s * w for s, w in zip(sigmas, rng.standard_normal(len(sigmas)).tolist(), strict=True)]
-        self._draws: list[list[float]] = []
-        self._next = 0
+        self._draws = NormalBatches(rng, len(sigmas), _BATCH)
         self._dt_s = math.nan
         self._coefficients: list[tuple[int, float, float]] = []  # (process, a = e^{−dt/τ}, σ·√(1 − a²)), σ > 0
 
@@ -107,11 +107,7 @@ class _GaussMarkovBank:
                     self._coefficients.append((i, a, sigma * math.sqrt(1.0 - a * a)))
         if not self._coefficients:
             return self.x
-        if self._next >= len(self._draws):
-            self._draws = self._rng.standard_normal((_BATCH, len(self.sigmas))).tolist()
-            self._next = 0
-        w = self._draws[self._next]
-        self._next += 1
+        w = self._draws.next()
         x = self.x
         for i, a, b in self._coefficients:
             x[i] = x[i] * a + b * w[i]

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.noise import NormalBatches
+
 Vec3 = tuple[float, float, float]
 _BATCH = 512
 
@@ -53,9 +55,8 @@ class Wind:
     def __init__(self, config: WindConfig | None = None, seed: int = 0) -> None:
         self.config = config if config is not None else WindConfig()
         self._rng = np.random.default_rng(seed)
+        self._draws = NormalBatches(self._rng, 3, _BATCH)  # drawn at the first step, after the start's
         self._mean_ned_mps = self.config.mean_ned_mps()
-        self._draws: list[list[float]] = []  # N(0, 1) drawn in batches (numpy per call is slow)
-        self._next_draw = 0
         sigma = self.config
         # Start the gusts in their stationary distribution, so there is no warm-up transient.
         self._gust_ned_mps = [
@@ -86,11 +87,7 @@ class Wind:
         """Advance the gusts by ``dt_s`` seconds and return the new air velocity (NED, m/s)."""
         if dt_s <= 0.0:
             return self.wind_ned_mps
-        if self._next_draw >= len(self._draws):
-            self._draws = self._rng.standard_normal((_BATCH, 3)).tolist()
-            self._next_draw = 0
-        w = self._draws[self._next_draw]
-        self._next_draw += 1
+        w = self._draws.next()
         if dt_s != self._dt_s:
             # φ = exp(−dt/τ), and σ √(1 − φ²): the same for every step of this length
             self._dt_s, self._coefficients = dt_s, [_ou_coefficients(s, tau, dt_s) for s, tau in self._axes]
