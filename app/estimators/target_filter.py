@@ -128,10 +128,13 @@ class LinearTargetFilter(ABC):
         if self.x is None or self.P is None or t_s - self._last_fix_t_s > self.timeout_s:
             return None
         dt_s = max(0.0, t_s - self.t_s)
-        x, P = kf_predict(self.x, self.P, self.F(dt_s), self.Q(dt_s))
-        pos = self.H @ x
+        F, H = self.F(dt_s), self.H
+        x = F @ self.x
+        pos = H @ x
         vel, acc = self.velocity_acceleration(x)
-        cov = self.H @ P @ self.H.T
+        # only the position's covariance: H (F P Fᵀ + Q) Hᵀ = (H F) P (H F)ᵀ + H Q Hᵀ, without the full F P Fᵀ
+        HF = H @ F
+        cov = HF @ self.P @ HF.T + H @ self.Q(dt_s) @ H.T
         return TargetEstimate(
             t_s,
             (float(pos[0]), float(pos[1]), self._down_m),

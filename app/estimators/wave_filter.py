@@ -153,11 +153,8 @@ class WaveFilter(LinearTargetFilter):
         return np.array([x[0], x[n]]), np.array([x[1], x[n + 1]])
 
     def velocity_acceleration(self, x: Array) -> tuple[Array, Array]:
-        n = self.n_axis
-        vel, acc = np.zeros(2), np.zeros(2)
-        for axis in range(2):
-            s = x[axis * n : (axis + 1) * n]
-            xi, xidot = s[2::2], s[3::2]
-            vel[axis] = s[1] + xidot.sum()
-            acc[axis] = float(np.sum(-(self.omegas**2) * xi - 2.0 * self.damping * self.omegas * xidot))
+        per_axis = x.reshape(2, self.n_axis)  # north, east
+        xi, xidot = per_axis[:, 2::2], per_axis[:, 3::2]
+        vel = per_axis[:, 1] + xidot.sum(axis=1)
+        acc = np.sum(-(self.omegas**2) * xi - 2.0 * self.damping * self.omegas * xidot, axis=1)
         return vel, acc

@@ -151,6 +151,30 @@ def test_covariance_stays_symmetric_positive_definite(steps, kind):
         assert est is not None and is_spd(np.array(est.cov_ne_m2))
 
 
+@pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
+def test_an_estimate_is_the_full_kalman_prediction_of_the_position(f):
+    """``estimate`` predicts only what it reports (x and the position block of P): the same as predicting the
+    whole state, x = F x and P = F P Fᵀ + Q, then H x, H P Hᵀ and the state's velocity and acceleration."""
+    rng = np.random.default_rng(3)
+    for k in range(200):
+        t = k / 30
+        f.update(fix(t, math.sin(t) + rng.normal(0, 0.01), math.cos(0.7 * t), ((1e-4, 0.0), (0.0, 1e-4))))
+    for dt_s in (0.0, 0.02, 0.25, 1.0):
+        F, Q = f.F(dt_s), f.Q(dt_s)
+        x, P = F @ f.x, F @ f.P @ F.T + Q
+        est = f.estimate(f.t_s + dt_s)
+        np.testing.assert_allclose(est.pos_ned_m[:2], f.H @ x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(est.cov_ne_m2, f.H @ P @ f.H.T, rtol=1e-12, atol=1e-15)
+        vel, acc = f.velocity_acceleration(x)
+        assert est.vel_ned_mps[:2] == tuple(vel) and est.acc_ned_mps2[:2] == tuple(acc)
+    if isinstance(f, WaveFilter):  # velocity and acceleration: the current plus each oscillator, per axis
+        n, w, lam = f.n_axis, f.omegas, f.damping
+        for axis in range(2):
+            s = x[axis * n : (axis + 1) * n]
+            assert vel[axis] == pytest.approx(s[1] + s[3::2].sum(), abs=1e-12)
+            assert acc[axis] == pytest.approx(np.sum(-(w**2) * s[2::2] - 2 * lam * w * s[3::2]), abs=1e-12)
+
+
 def test_wave_filter_predicts_a_swell_one_second_ahead_better_than_cv():
     """A 5.6 s swell of 0.5 m amplitude on a 0.3 m/s drift, fixes at 20 Hz with 3 cm noise."""
     rng = np.random.default_rng(0)
