@@ -2,7 +2,8 @@
 
 Inputs arrive from the sensor tasks, each stamped with the time it was *measured* (loop clock):
 - vehicle samples (position and attitude) → the state history (``on_vehicle_sample``);
-- the radar's height above the sea (``on_height``), or its loss (``on_radar_lost``);
+- the radar's height above the sea (``on_height``), or its loss (``on_radar_lost``) — these two kept, with the
+  mean sea they give, by ``app.missions.vehicle_over_sea.VehicleOverSea``;
 - detections at the frame's capture time: a marker's four raw corner pixels (``on_marker``), or a buoy's
   centre and diameter in raw pixels (``on_buoy``).
 
@@ -41,7 +42,7 @@ from numpy.typing import ArrayLike
 
 from app.estimators.apparent_size import apparent_size_ratio, sphere_size_ratio
 from app.estimators.sea_level import MeanSeaLevel
-from app.estimators.state_history import OutsideHistoryError, StateHistory
+from app.estimators.state_history import StateHistory
 from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.triangulation import SeaPlaneFix, SeaPlaneTriangulator
 from app.messages import (
@@ -52,6 +53,7 @@ from app.messages import (
     VehicleStateNed,
 )
 from app.missions.estimates import Estimates, SensorHealth
+from app.missions.vehicle_over_sea import VehicleOverSea
 
 if TYPE_CHECKING:
     from app.missions.pickup_targets import SearchPattern
@@ -112,11 +114,8 @@ class PickupEstimates:
         self.history = history if history is not None else StateHistory()
         self.rejected: Counter[str] = Counter()
         self.fixes = 0
-        self._height: tuple[float, float] | None = None  # (t_s, m), the newest
-        self._heights: deque[tuple[float, float]] = deque(maxlen=64)  # recent ones, for the height at capture time
-        self._heights_to_level: deque[tuple[float, float]] = deque(maxlen=64)  # waiting for the vehicle's altitude
         self.sea_level = sea_level if sea_level is not None else MeanSeaLevel()
-        self._radar_lost = False
+        self.over_sea = VehicleOverSea(self.checks, self.history, self.sea_level)
         self._last_frame_t_s: float | None = None
         self._last_fix_t_s: float | None = None
         self._candidates: deque[TargetObservation] = deque()
@@ -178,109 +177,41 @@ class PickupEstimates:
 
     # ---- inputs -------------------------------------------------------------------------------
 
+    # the vehicle over the sea (``VehicleOverSea``): its samples and radar heights in, its state and heights out
     def on_vehicle_sample(self, sample: PositionVelocityNed | AttitudeEuler, received_s: float = 0.0) -> None:
-        if isinstance(sample, PositionVelocityNed):
-            self.history.add_pos_vel(sample)
-        else:
-            self.history.add_attitude(sample)
+        self.over_sea.on_vehicle_sample(sample, received_s)
 
     def on_height(self, t_s: float, height_m: float) -> None:
-        if math.isfinite(t_s) and math.isfinite(height_m) and height_m > 0.0:
-            if self._height is None or t_s > self._height[0]:
-                self._height = (t_s, height_m)
-                self._heights.append((t_s, height_m))
-                self._heights_to_level.append((t_s, height_m))
-            self._radar_lost = False
-        self._update_sea_level()
+        self.over_sea.on_height(t_s, height_m)
 
-    def _update_sea_level(self) -> None:
-        """Heights become samples of the sea surface once the vehicle's altitude at their time is known."""
-        while self._heights_to_level:
-            t_s, h = self._heights_to_level[0]
-            try:
-                state = self.history.at(t_s)
-            except OutsideHistoryError as e:
-                if e.newest_s is None or t_s > e.newest_s:  # the vehicle's sample after it has not arrived yet
-                    return
-                self._heights_to_level.popleft()
-                continue
-            self._heights_to_level.popleft()
-            self.sea_level.update(t_s, state.pos_ned_m[2] + h)
+    def on_radar_lost(self) -> None:
+        self.over_sea.on_radar_lost()
 
     def height_at(self, t_s: float) -> tuple[float, float] | None:
-        """The height above the sea at ``t_s`` and how uncertain it is, m: the radar's when it has one, else the
-        vehicle's altitude over the sea reference (``sea_reference``: above the radar's range, e.g. searching at
-        10 m with a 5 m radar), with ``altitude_uncertainty_m`` more uncertainty. None without either."""
-        radar_m = self.radar_height_at(t_s)
-        if radar_m is not None:
-            return radar_m, self.checks.height_uncertainty_m
-        state = self.state_at(t_s)
-        if state is None:
-            return None
-        down_m = state.pos_ned_m[2]
-        c = self.checks
-        return self.sea_reference(t_s)[0] - down_m, c.height_uncertainty_m + c.altitude_uncertainty_m
+        return self.over_sea.height_at(t_s)
 
     def state_at(self, t_s: float) -> VehicleStateNed | None:
-        """The vehicle at ``t_s`` from the history; a little past its newest sample (a camera frame whose capture
-        came after the last telemetry sample arrived) carried at that sample's velocity, attitude held."""
-        try:
-            return self.history.at(t_s)
-        except OutsideHistoryError as e:
-            newest_s = e.newest_s
-            if newest_s is None or not 0.0 < t_s - newest_s <= self.checks.max_extrapolation_s:
-                return None
-        try:
-            s = self.history.at(newest_s)
-        except OutsideHistoryError:
-            return None
-        dt_s = t_s - newest_s
-        p, v = s.pos_ned_m, s.vel_ned_mps
-        return VehicleStateNed(t_s, (p[0] + v[0] * dt_s, p[1] + v[1] * dt_s, p[2] + v[2] * dt_s), v, s.q_ned_frd)
+        return self.over_sea.state_at(t_s)
 
     def height_over_mean_sea_m(self, t_s: float) -> float | None:
-        """The vehicle's altitude over the tracked mean sea, while that is fresh (``sea_level_fresh_s``)."""
-        last = self.sea_level.last()
-        state = self.state_at(t_s)
-        if last is None or state is None or t_s - last.t_s > self.checks.sea_level_fresh_s:
-            return None
-        return last.down_m + last.rate_mps * (t_s - last.t_s) - state.pos_ned_m[2]
+        return self.over_sea.height_over_mean_sea_m(t_s)
 
     def sea_reference(self, t_s: float) -> tuple[float, float]:
-        """Where the mean sea surface is (down, autopilot frame) and its drift: the tracked mean sea while radar
-        heights come, the last level it had when they stop, and before any: ``home_above_sea_m`` below home."""
-        est = self.sea_level.estimate(t_s)
-        if est is not None:
-            return est.down_m, est.rate_mps
-        last = self.sea_level.last()
-        return (last.down_m, 0.0) if last is not None else (self.checks.home_above_sea_m, 0.0)
+        return self.over_sea.sea_reference(t_s)
 
     def radar_height_at(self, t_s: float) -> float | None:
-        """The radar height at ``t_s`` (interpolated between the two around it; the newest if ``t_s`` is later),
-        None when no height lies within ``height_max_age_s``."""
-        hs = self._heights
-        if not hs or self._radar_lost:
-            return None
-        max_age_s = self.checks.height_max_age_s
-        if t_s >= hs[-1][0]:
-            return hs[-1][1] if t_s - hs[-1][0] <= max_age_s else None
-        for (t0, h0), (t1, h1) in zip(reversed(hs), list(reversed(hs))[1:], strict=False):
-            # walking back: (t0, h0) is the later one
-            if t1 <= t_s <= t0:
-                if t0 - t1 > max_age_s:
-                    return None
-                f = (t_s - t1) / (t0 - t1) if t0 > t1 else 1.0
-                return h1 + f * (h0 - h1)
-        return hs[0][1] if hs[0][0] - t_s <= max_age_s else None
+        return self.over_sea.radar_height_at(t_s)
+
+    def height_above_sea_m(self, t_s: float) -> float | None:
+        return self.over_sea.height_above_sea_m(t_s)
 
     def latest_height_m(self) -> float | None:
         """The height above the sea at the newest camera frame, for a detector that sizes its search by it."""
-        t_s = self._last_frame_t_s if self._last_frame_t_s is not None else (self._height or (0.0, 0.0))[0]
+        t_s = self._last_frame_t_s
+        if t_s is None:
+            t_s = (self.over_sea.newest_height or (0.0, 0.0))[0]
         h = self.height_at(t_s)
         return None if h is None else h[0]
-
-    def on_radar_lost(self) -> None:
-        self._radar_lost = True
 
     def on_frame(self, t_s: float) -> None:
         """A camera frame was processed (with or without a detection): the camera is alive."""
@@ -401,12 +332,6 @@ class PickupEstimates:
         timed out too: a missed object drifts on, with the current and pushed off by the rotors' wash)."""
         return self.filter.drifted(t_s)
 
-    def height_above_sea_m(self, t_s: float) -> float | None:
-        h = self._height
-        if h is None or self._radar_lost or t_s - h[0] > self.checks.height_max_age_s:
-            return None
-        return h[1]
-
     def snapshot(self, t_s: float) -> Estimates:
         est = self.estimate(t_s)
         sigma_m = None
@@ -435,7 +360,7 @@ class PickupEstimates:
         }
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,
-            radar_lost=self._radar_lost,
+            radar_lost=self.over_sea.radar_lost,
         )
         return Estimates(
             t_s,
