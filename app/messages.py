@@ -151,18 +151,20 @@ class VelocitySetpointNed:
 
 @dataclass(frozen=True, slots=True)
 class TargetState:
-    """Where the target is (NED, metres) and how it moves, valid at ``t_s``."""
+    """Where the target is (NED, metres) and how it moves, valid at ``t_s``; ``yaw_rad`` the heading to fly
+    there (None: the loop keeps the one it has)."""
 
     t_s: float
     pos_ned_m: Vec3
     vel_ned_mps: Vec3
     acc_ned_mps2: Vec3 = (0.0, 0.0, 0.0)
+    yaw_rad: float | None = None
 
     def predict(self, t_s: float) -> TargetState:
         """Constant-velocity extrapolation to ``t_s`` (acceleration kept, not integrated)."""
         dt_s = t_s - self.t_s
         p = tuple(p + v * dt_s for p, v in zip(self.pos_ned_m, self.vel_ned_mps, strict=True))
-        return TargetState(t_s, (p[0], p[1], p[2]), self.vel_ned_mps, self.acc_ned_mps2)
+        return TargetState(t_s, (p[0], p[1], p[2]), self.vel_ned_mps, self.acc_ned_mps2, self.yaw_rad)
 
 
 def norm(v: Vec3) -> float:

@@ -18,8 +18,9 @@ whatever ``--runs`` is — so a run can be repeated anywhere (a local process, a
 
 A configuration is what the *app* does differently: ``seapick`` (the defaults) and ``thesis`` (the thesis's
 constant-velocity filter as its Listing 4.1 has it — no innovation gate, every fix fused —, no latency
-compensation, full-frame detection). Each is told the scenario's sea state: the wave filter takes its Hs and Tp
-from it, the constant-velocity filter the process noise tuned for it (``CV_TUNED_Q``; the thesis set Q from
+compensation, full-frame detection); ``seapick-lean`` is seapick turning so that its mean lean lies along the
+image's wider side (``lean_yaw_min_tilt_deg``). Each is told the scenario's sea state: the wave filter takes its
+Hs and Tp from it, the constant-velocity filter the process noise tuned for it (``CV_TUNED_Q``; the thesis set Q from
 configuration parameters). Both matter: on a calm sea (10 runs, seed 1) the thesis configuration with a fixed Q
 and seapick's gate picked up 0 of 10, with the tuned Q and the gate 1 of 10 (its uncompensated latency throws
 fixes outside the gate of a confident filter, again and again, until the lock is lost), with the tuned Q and no
@@ -71,6 +72,7 @@ class EvalConfig:
     latency_compensation: bool
     full_frame_detection: bool
     innovation_gate: bool = True
+    lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -80,6 +82,10 @@ CONFIGS: dict[str, EvalConfig] = {
     "seapick": EvalConfig("seapick", "wave", latency_compensation=True, full_frame_detection=False),
     "thesis": EvalConfig(
         "thesis", "constant_velocity", latency_compensation=False, full_frame_detection=True, innovation_gate=False
+    ),
+    # seapick turning its mean lean along the image's wider side (``app.estimators.lean``); not the default yet
+    "seapick-lean": EvalConfig(
+        "seapick-lean", "wave", latency_compensation=True, full_frame_detection=False, lean_yaw_min_tilt_deg=5.0
     ),
 }
 

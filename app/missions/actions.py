@@ -177,12 +177,12 @@ async def start_search(io: MissionIO) -> None:
 
 async def start_approach(io: MissionIO) -> None:
     """Above the estimate at the search height above the sea (from the water first, as ``start_search``)."""
-    target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.search_altitude_m)
+    target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.search_altitude_m, _lean_yaw(io))
     await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 async def start_track(io: MissionIO) -> None:
-    target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.track_height_m)
+    target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.track_height_m, _lean_yaw(io))
     await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
@@ -206,8 +206,15 @@ async def start_descend(io: MissionIO) -> None:
         math.inf if p.final_blind_gap_s is None else p.final_blind_gap_s,
         math.inf if p.final_max_lead_m is None else p.final_max_lead_m,
         p.crest_clearance_m,
+        _lean_yaw(io),
     )
     io.setpoints.engage(target, allow_below_min=True)
+
+
+def _lean_yaw(io: MissionIO) -> float | None:
+    """The mean lean from which TRACK and DESCEND turn the image's wider side along it, rad."""
+    deg = io.params.lean_yaw_min_tilt_deg
+    return None if deg is None else math.radians(deg)
 
 
 async def grab(io: MissionIO) -> None:

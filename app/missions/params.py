@@ -108,6 +108,14 @@ class MissionParams(BaseModel):
         "view is smaller than the offset plus the tilt); go on blind only within final_radius_m of the estimate and "
         "moving with it (final_max_speed_mps), else climb back to the final height; unset: no such check, s",
     )
+    lean_yaw_min_tilt_deg: float | None = Field(
+        None,
+        ge=0.0,
+        le=45.0,
+        description="in TRACK and DESCEND, turn so that the vehicle's mean lean (wind, drift) lies along the image's "
+        "wider side, once it leans this much on average: the object under it stays in view lower down; unset: "
+        "the heading is held, deg",
+    )
     crest_margin_m: float = Field(
         0.5, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
     )

@@ -151,6 +151,17 @@ class PickupEstimates:
         cam = self.tri.camera
         return height_m * min(cam.width_px / cam.fx_px, cam.height_px / cam.fy_px)
 
+    def wide_axis_body_rad(self) -> float:
+        """The direction of the image's wider side in the body (from the nose, clockwise; the mount turns it)."""
+        cam = self.tri.camera
+        axis = self.tri.R_frd_cam[:, 0 if cam.width_px / cam.fx_px >= cam.height_px / cam.fy_px else 1]
+        return math.atan2(float(axis[1]), float(axis[0]))
+
+    def yaw_across_lean(self, yaw_rad: float, min_tilt_rad: float) -> float | None:
+        """The heading that puts the vehicle's mean lean along the image's wider side (``app.estimators.lean``):
+        the object under a leaning vehicle stays in the picture lower down. None in calm air."""
+        return self.over_sea.lean.across_yaw_rad(self.wide_axis_body_rad(), yaw_rad, min_tilt_rad)
+
     def on_grab(self, vehicle_ne_m: tuple[float, float]) -> None:
         """A grab at ``vehicle_ne_m``: sightings of the object on the sea near there from now on mean it missed."""
         self.grab_attempts += 1

@@ -120,10 +120,13 @@ class ObjectTarget:
 
     name = "object"
 
-    def __init__(self, model: PickupEstimates, telemetry: Telemetry, height_m: float) -> None:
+    def __init__(
+        self, model: PickupEstimates, telemetry: Telemetry, height_m: float, lean_yaw_min_tilt_rad: float | None = None
+    ) -> None:
         self.model = model
         self.telemetry = telemetry
         self.height_m = height_m
+        self.lean_yaw_min_tilt_rad = lean_yaw_min_tilt_rad  # None: keep the heading
 
     def _sea(self, t_s: float) -> tuple[float, float]:
         """The mean sea surface (down) and its drift rate (above the radar's range: the last level it had)."""
@@ -137,7 +140,14 @@ class ObjectTarget:
         # horizontally the object (its wave motion included); vertically a height above the *mean* sea: the
         # vehicle does not ride the swell
         (n, e, _), (vn, ve, _), (an, ae, _) = est.pos_ned_m, est.vel_ned_mps, est.acc_ned_mps2
-        return TargetState(t_s, (n, e, sea[0] - height_m), (vn, ve, sea[1]), (an, ae, 0.0))
+        return TargetState(t_s, (n, e, sea[0] - height_m), (vn, ve, sea[1]), (an, ae, 0.0), self._yaw())
+
+    def _yaw(self) -> float | None:
+        """The heading that puts the mean lean along the image's wider side (``lean_yaw_min_tilt_rad`` set)."""
+        attitude = self.telemetry().attitude if self.lean_yaw_min_tilt_rad is not None else None
+        if attitude is None or self.lean_yaw_min_tilt_rad is None:
+            return None
+        return self.model.yaw_across_lean(attitude.yaw_rad, self.lean_yaw_min_tilt_rad)
 
     def target_at(self, t_s: float) -> TargetState | None:
         return self._aim(t_s, self.height_m)
@@ -216,8 +226,9 @@ class DescendTarget(ObjectTarget):
         blind_gap_s: float = math.inf,
         final_max_lead_m: float = math.inf,
         crest_clearance_m: float = 0.0,
+        lean_yaw_min_tilt_rad: float | None = None,
     ) -> None:
-        super().__init__(model, telemetry, start_height_m)
+        super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad)
         self.speed_mps = speed_mps
         self.safety_height_m = safety_height_m
         self.fresh_s = fresh_s

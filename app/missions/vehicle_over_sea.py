@@ -15,6 +15,7 @@ import math
 from collections import deque
 from typing import TYPE_CHECKING
 
+from app.estimators.lean import MeanLean
 from app.estimators.sea_level import MeanSeaLevel
 from app.estimators.state_history import OutsideHistoryError, StateHistory
 from app.messages import AttitudeEuler, PositionVelocityNed, VehicleStateNed
@@ -30,6 +31,7 @@ class VehicleOverSea:
         self.checks = checks
         self.history = history
         self.sea_level = sea_level
+        self.lean = MeanLean()  # which way the vehicle leans on average (wind, drift)
         self.radar_lost = False
         self.newest_height: tuple[float, float] | None = None  # (t_s, m)
         self._heights: deque[tuple[float, float]] = deque(maxlen=64)  # recent ones, for the height at capture time
@@ -40,6 +42,7 @@ class VehicleOverSea:
             self.history.add_pos_vel(sample)
         else:
             self.history.add_attitude(sample)
+            self.lean.add(sample)
 
     def on_height(self, t_s: float, height_m: float) -> None:
         if math.isfinite(t_s) and math.isfinite(height_m) and height_m > 0.0:

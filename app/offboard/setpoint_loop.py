@@ -193,6 +193,8 @@ class SetpointLoop:
             target, why = self._hold.target_at(now_s), "hold"
         elif self._hold is not None and self._hold is not source:
             self._hold = None
+        if target.yaw_rad is not None:
+            self._yaw_rad = target.yaw_rad
         # Guidance on the position predicted to now (telemetry is a few ms old).
         dt_s = now_s - pv.t_s
         pos_now = (

@@ -283,6 +283,9 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
     assert isinstance(wave, WaveFilter) and seapick.sea_state == thesis.sea_state == sea_state
     assert (seapick.cv_q_pos_m2ps, seapick.cv_q_vel_m2ps3) == (base.cv_q_pos_m2ps, base.cv_q_vel_m2ps3)
     assert thesis.search_start_ne_m == seapick.search_start_ne_m == tuple(sc["object_start_ne_m"])
+    lean = base.model_copy(update=mission_params(sc, CONFIGS["seapick-lean"]))
+    assert seapick.lean_yaw_min_tilt_deg is None and thesis.lean_yaw_min_tilt_deg is None  # the heading held
+    assert lean.lean_yaw_min_tilt_deg == 5.0 and lean.target_filter == seapick.target_filter
 
 
 def test_a_run_flies_the_same_with_its_report_as_without(tmp_path):

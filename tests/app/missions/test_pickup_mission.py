@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 import time
 
@@ -361,3 +362,57 @@ async def test_an_object_lost_again_after_search_retries_searches_is_given_up_an
     assert world.outcome.grabs == []  # never went down onto it
     truth = vehicle.truth()
     assert not truth.armed and math.hypot(truth.pos_ned_m[0], truth.pos_ned_m[1]) < 2.0  # landed at home
+
+
+async def fly_pickup_watching_attitude(**params):
+    """The default scenario's pickup (marker) in 8 m/s of wind from the north, the vehicle's truth at every camera
+    frame and the mission's states."""
+    events = EventLog(None)
+    states: list[dict] = []
+    events.subscribe({"state"}, states.append)
+    scenario = PickupScenario(seed=1, sea_state=2, current_mps=0.3)
+    settings = load_settings()
+    vehicle = InProcessVehicle(seed=1, wind=WindConfig(mean_mps=8.0, from_deg=0.0, gust_sigma_mps=0.8))
+    world = PickupWorld(vehicle, scenario, settings)
+    truth: list[tuple[float, float, float, float]] = []
+    world.frame_observers.append(lambda t_s, s, _o: truth.append((t_s, s.roll_rad, s.pitch_rad, s.yaw_rad)))
+    table = load_mission("pickup")
+    table = table.model_copy(update={"params": table.params.model_copy(update=params)})
+    flight = await fly_mission(vehicle, table, settings, LoopClock(), events, sensors=[world.sensors])
+    spans = {}
+    for a, b in itertools.pairwise(states):
+        spans.setdefault(a["to"], (a["t_s"], b["t_s"]))
+    t0, t1 = spans["DESCEND"]
+    descend = np.array([x[1:] for x in truth if t0 <= x[0] < t1])
+    return flight, world, descend, vehicle.records
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_in_wind_it_turns_so_the_lean_lies_along_the_pictures_wider_side():
+    """8 m/s from the north, the vehicle heading north: it leans into the wind nose-down, so the object under it
+    sits off the picture's centre along its narrow side (960 px, ±25.6°). With ``lean_yaw_min_tilt_deg`` set (5°) it
+    turns a quarter round and the same lean becomes a roll, along the wide side (±32.6°).
+    Judged from the simulator's truth of the vehicle in DESCEND and its log of the setpoints it was sent."""
+    flight, world, descend, records = await fly_pickup_watching_attitude(lean_yaw_min_tilt_deg=5.0)
+    roll, pitch, yaw = np.degrees(descend[:, 0]), np.degrees(descend[:, 1]), np.degrees(descend[:, 2])
+    print(f"turned: mean roll {roll.mean():.1f}°, pitch {pitch.mean():.1f}°, yaw {np.median(yaw):.0f}°, "
+          f"{flight.result.outcome}, grabs {world.outcome.grabs}")  # fmt: skip
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+    assert abs(roll.mean()) > 5.0 and abs(pitch.mean()) < abs(roll.mean()) / 3.0  # the lean is a roll
+    assert 80.0 < abs(np.median(yaw)) < 100.0  # side on to the wind
+    assert all(c["error_m"] <= 0.25 for c in world.outcome.contacts)
+    asked = [r["yaw_rad"] for r in records if r["event"] == "setpoint" and r.get("yaw_rad") is not None]
+    assert any(abs(abs(math.degrees(y)) - 90.0) < 10.0 for y in asked)
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_unset_the_heading_is_held_and_the_lean_stays_along_the_nose():
+    """Unset (pickup.yaml's default) the heading is held."""
+    flight, world, descend, records = await fly_pickup_watching_attitude()
+    roll, pitch, yaw = np.degrees(descend[:, 0]), np.degrees(descend[:, 1]), np.degrees(descend[:, 2])
+    print(f"held: mean roll {roll.mean():.1f}°, pitch {pitch.mean():.1f}°, yaw {np.median(yaw):.0f}°, "
+          f"{flight.result.outcome}, grabs {world.outcome.grabs}")  # fmt: skip
+    assert abs(np.median(yaw)) < 5.0 and np.ptp(yaw) < 5.0  # the heading held (north)
+    assert abs(pitch.mean()) > 5.0 and abs(roll.mean()) < abs(pitch.mean()) / 3.0  # the lean along the nose
+    asked = {round(r["yaw_rad"], 6) for r in records if r["event"] == "setpoint" and r.get("yaw_rad") is not None}
+    assert all(abs(y) < math.radians(5.0) for y in asked)
