@@ -212,7 +212,7 @@ async def start_descend(io: MissionIO) -> None:
 
 
 def _lean_yaw(io: MissionIO) -> float | None:
-    """The mean lean from which TRACK and DESCEND turn the image's wider side along it, rad."""
+    """The mean lean from which APPROACH, TRACK and DESCEND turn the image's wider side along it, rad."""
     deg = io.params.lean_yaw_min_tilt_deg
     return None if deg is None else math.radians(deg)
 

@@ -112,9 +112,9 @@ class MissionParams(BaseModel):
         None,
         ge=0.0,
         le=45.0,
-        description="in TRACK and DESCEND, turn so that the vehicle's mean lean (wind, drift) lies along the image's "
-        "wider side, once it leans this much on average: the object under it stays in view lower down; unset: "
-        "the heading is held, deg",
+        description="in APPROACH, TRACK and DESCEND, turn so that the vehicle's mean lean (wind, drift) lies along "
+        "the image's wider side once it leans this much on average (app.estimators.lean); unset: the heading is "
+        "held, deg",
     )
     crest_margin_m: float = Field(
         0.5, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
