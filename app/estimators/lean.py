@@ -11,9 +11,8 @@ than along the nose. Measured at sea state 3 (``sim.evaluate --compare seapick,s
 seeds 1 and 2): touchdown p95 0.151/0.148 m against 0.187/0.169 m with the heading held, but not fewer
 off-target touchdowns (10 and 5 against 4 and 7), and the object is lost low down about as often (40 windy runs,
 a 3° threshold: within 0.1 m of it, 0.30–0.45 m over the water, a marker was seen in 72 % of frames against
-75 %): the swing of the lean on
-the waves and the vehicle's offset from the object matter more there than the mean. So it is the mission's option
-(``lean_yaw_min_tilt_deg``), off by default.
+75 %): the swing of the lean on the waves and the vehicle's offset from the object matter more there than the
+mean. So it is the mission's option (``lean_yaw_min_tilt_deg``), off by default.
 """
 
 from __future__ import annotations

@@ -158,8 +158,8 @@ class PickupEstimates:
         return math.atan2(float(axis[1]), float(axis[0]))
 
     def yaw_across_lean(self, yaw_rad: float, min_tilt_rad: float) -> float | None:
-        """The heading that puts the vehicle's mean lean along the image's wider side (``app.estimators.lean``):
-        the object under a leaning vehicle stays in the picture lower down. None in calm air."""
+        """The heading that puts the vehicle's mean lean along the image's wider side (``app.estimators.lean``);
+        None in calm air."""
         return self.over_sea.lean.across_yaw_rad(self.wide_axis_body_rad(), yaw_rad, min_tilt_rad)
 
     def on_grab(self, vehicle_ne_m: tuple[float, float]) -> None:

@@ -144,10 +144,10 @@ class ObjectTarget:
 
     def _yaw(self) -> float | None:
         """The heading that puts the mean lean along the image's wider side (``lean_yaw_min_tilt_rad`` set)."""
-        attitude = self.telemetry().attitude if self.lean_yaw_min_tilt_rad is not None else None
-        if attitude is None or self.lean_yaw_min_tilt_rad is None:
+        if self.lean_yaw_min_tilt_rad is None:
             return None
-        return self.model.yaw_across_lean(attitude.yaw_rad, self.lean_yaw_min_tilt_rad)
+        attitude = self.telemetry().attitude
+        return None if attitude is None else self.model.yaw_across_lean(attitude.yaw_rad, self.lean_yaw_min_tilt_rad)
 
     def target_at(self, t_s: float) -> TargetState | None:
         return self._aim(t_s, self.height_m)
