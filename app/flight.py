@@ -120,6 +120,7 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
         marker_size_m=p.marker_size_m,
         buoy_diameter_m=settings.detector.buoy_diameter_m,
         size_tolerance=p.size_tolerance,
+        height_from_size=p.fix_height_from_size,
         height_uncertainty_m=SEA_STATES[p.sea_state].hs_m / 2.0,  # the sea under the radar vs under the object
         wave_slope=peak_wave_slope(SEA_STATES[p.sea_state].hs_m, SEA_STATES[p.sea_state].tp_s),
         confirm_frames=p.confirm_frames,

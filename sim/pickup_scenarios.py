@@ -18,7 +18,8 @@ whatever ``--runs`` is — so a run can be repeated anywhere (a local process, a
 
 A configuration is what the *app* does differently: ``seapick`` (the defaults) and ``thesis`` (the thesis's
 constant-velocity filter as its Listing 4.1 has it — no innovation gate, every fix fused —, no latency
-compensation, full-frame detection); ``seapick-lean`` is seapick turning so that its mean lean lies along the
+compensation, full-frame detection, and the radar's height for every fix: none from the object's apparent size);
+``seapick-lean`` is seapick turning so that its mean lean lies along the
 image's wider side (``lean_yaw_min_tilt_deg``). Each is told the scenario's sea state: the wave filter takes its
 Hs and Tp from it, the constant-velocity filter the process noise tuned for it (``CV_TUNED_Q``; the thesis set Q from
 configuration parameters). Both matter: on a calm sea (10 runs, seed 1) the thesis configuration with a fixed Q
@@ -73,6 +74,7 @@ class EvalConfig:
     full_frame_detection: bool
     innovation_gate: bool = True
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
+    height_from_size: bool = True  # low down, the height from the object's apparent size (the thesis: the radar's)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -81,7 +83,12 @@ class EvalConfig:
 CONFIGS: dict[str, EvalConfig] = {
     "seapick": EvalConfig("seapick", "wave", latency_compensation=True, full_frame_detection=False),
     "thesis": EvalConfig(
-        "thesis", "constant_velocity", latency_compensation=False, full_frame_detection=True, innovation_gate=False
+        "thesis",
+        "constant_velocity",
+        latency_compensation=False,
+        full_frame_detection=True,
+        innovation_gate=False,
+        height_from_size=False,
     ),
     # seapick turning its mean lean along the image's wider side (``app.estimators.lean``); not the default yet
     "seapick-lean": EvalConfig(

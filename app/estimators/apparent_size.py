@@ -1,6 +1,7 @@
 """How big an object should look in the image at a fix's range, against how big it does: the size check that
 refuses a detection of the wrong physical size (``app.missions.pickup``'s defence against printed glyphs and
-round bright spots). Pure geometry on the undistorted image plane."""
+round bright spots), and the range that the size then measures (``height_from_size``: below the radar's first
+range, the only height over the object there is). Pure geometry on the undistorted image plane."""
 
 from __future__ import annotations
 
@@ -54,3 +55,18 @@ def apparent_size_ratio(corners_px: ArrayLike, fix: SeaPlaneFix, camera: CameraM
     range_m = fix.camera_height_m / max(cos_theta, 1e-6)
     expected = size_m**2 * cos_theta / (range_m**2 * cos_beta**3)
     return math.sqrt(polygon_area(xy) / expected) if expected > 0.0 else math.inf
+
+
+def height_from_size(camera_height_m: float, ratio: float, rel_std: float) -> tuple[float, float]:
+    """The camera's height above the object and its σ, m, from a size ``ratio`` (measured over expected apparent
+    size, as above) found with the ray triangulated at ``camera_height_m``: the expected size goes as 1/range and
+    the range along a ray as the height, so the object is ``camera_height_m / ratio`` below the camera;
+    ``rel_std`` is the size's relative σ (pixels, and how well the object's size is known)."""
+    h_m = camera_height_m / ratio
+    return h_m, h_m * rel_std
+
+
+def marker_size_rel_std(pixel_std_px: float, edge_px: float) -> float:
+    """Relative σ of a square's √area from independent corner noise σ: σ_A = σ·d (d the diagonal) for each of four
+    corners moved across the other diagonal, so σ_√A/√A = σ_A/(2A) = σ/(√2·edge)."""
+    return pixel_std_px / (math.sqrt(2.0) * edge_px) if edge_px > 0.0 else math.inf

@@ -154,6 +154,12 @@ class MissionParams(BaseModel):
     size_tolerance: float = Field(
         0.15, ge=0.02, le=1.0, description="apparent size within this of the expected (plus the waves' share)"
     )
+    fix_height_from_size: bool = Field(
+        True,
+        description="where the radar measures no sea (below its first range, low over the object), triangulate a "
+        "detection that passed the size check at the height its apparent size gives; false: the last radar height, "
+        "held, or the altitude over the mean sea (the thesis), true/false",
+    )
     confirm_frames: int = Field(3, ge=1, le=30, description="agreeing fixes before a new lock, count")
     confirm_fraction: float = Field(
         0.3, ge=0.0, le=1.0, description="the agreeing fixes are at least this share of the frames in 1 s (M of N)"

@@ -18,7 +18,10 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    height — a relative error that grows as the vehicle comes down. From 10 m in sea state 2 (±0.25 m) a
    detection must be within ±17.5 % of the marker's size: a same-ID print of 0.2 m (20 px, ratio 0.67–0.73
    on rendered frames) is refused, the marker itself (0.93–1.0) is not. A buoy is a sphere of the detector's
-   ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy;
+   ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy. A detection
+   that passes, where the radar measures no sea now (below its first range, low over the object: its last
+   height, held while the vehicle comes down, was 0.26 m high at 0.31 m and put fixes 6–7 cm off), is
+   triangulated again at the height its apparent size gives (``height_from_size``), when that is the surer;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
    must agree within ``confirm_radius_m``, and they must be at least ``confirm_fraction`` of the frames of that
    window (M of N, as a radar tracker confirms a track); only then is the filter started (with the newest).
@@ -40,7 +43,13 @@ from typing import TYPE_CHECKING, Any
 
 from numpy.typing import ArrayLike
 
-from app.estimators.apparent_size import apparent_size_ratio, sphere_size_ratio
+from app.estimators.apparent_size import (
+    apparent_size_ratio,
+    height_from_size,
+    marker_size_rel_std,
+    polygon_area,
+    sphere_size_ratio,
+)
 from app.estimators.sea_level import MeanSeaLevel
 from app.estimators.state_history import StateHistory
 from app.estimators.target_filter import LinearTargetFilter
@@ -86,8 +95,15 @@ class FixChecks:
     confirm_radius_m: float = 0.5
     confirm_fraction: float = 0.3  # … and they are at least this share of the frames in the window (M of N)
     height_max_age_s: float = 0.5  # a radar height older than this is not used
+    height_from_size: bool = True  # a detection that passed the size check measures the range to the object …
+    size_model_rel_std: float = 0.02  # … as well as its size is known (print, focal length, tilt on the waves) …
+    buoy_diameter_rel_std: float = 0.05  # … and a buoy's diameter is found (a marker's corners: the pixel noise),
+    radar_live_s: float = 0.15  # … where the radar measures no sea now: its newest height older than this
     converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
     grab_sighting_radius_m: float = 1.0  # after a grab, the object seen this close to it on the sea: missed
+
+
+SIZE_RATIO_RANGE = (1.0 / 3.0, 3.0)  # a size ratio that far off gives no height (a range wrong by 3×: no object)
 
 
 def largest_eigenvalue(cov: tuple[tuple[float, float], tuple[float, float]]) -> float:
@@ -114,6 +130,7 @@ class PickupEstimates:
         self.history = history if history is not None else StateHistory()
         self.rejected: Counter[str] = Counter()
         self.fixes = 0
+        self.sized_fixes = 0  # fixes triangulated at the height their apparent size gave (``height_from_size``)
         self.sea_level = sea_level if sea_level is not None else MeanSeaLevel()
         self.over_sea = VehicleOverSea(self.checks, self.history, self.sea_level)
         self._last_frame_t_s: float | None = None
@@ -240,6 +257,7 @@ class PickupEstimates:
             t_s,
             lambda state, h_m, std_m: self.tri.fix_marker(t_s, corners_px, state, h_m, height_std_m=std_m),
             lambda fix: apparent_size_ratio(corners_px, fix, self.tri.camera, edge_m),
+            marker_size_rel_std(self.tri.pixel_std_px, math.sqrt(polygon_area(corners_px))),
         )
 
     def on_buoy(self, t_s: float, center_px: tuple[float, float], diameter_px: float) -> bool:
@@ -248,6 +266,9 @@ class PickupEstimates:
             t_s,
             lambda state, h_m, std_m: self.tri.fix_pixel(t_s, center_px, state, h_m, height_std_m=std_m),
             lambda fix: sphere_size_ratio(center_px, diameter_px, fix, self.tri.camera, self.checks.buoy_diameter_m),
+            max(
+                self.checks.buoy_diameter_rel_std, self.tri.pixel_std_px / diameter_px if diameter_px > 0 else math.inf
+            ),
         )
 
     def _on_detection(
@@ -255,6 +276,7 @@ class PickupEstimates:
         t_s: float,
         triangulate: Callable[[VehicleStateNed, float, float], SeaPlaneFix | None],
         size_ratio: Callable[[SeaPlaneFix], float],
+        size_rel_std: float,
     ) -> bool:
         self.on_frame(t_s)
         c = self.checks
@@ -266,7 +288,8 @@ class PickupEstimates:
         if state is None:
             return self._reject("no_state")
         # the sea under the object differs from the height used by up to the waves: σ ≈ half that, along the ray
-        fix = triangulate(state, height_m, height_uncertainty_m / 2.0)
+        height_std_m = height_uncertainty_m / 2.0
+        fix = triangulate(state, height_m, height_std_m)
         if fix is None:
             return self._reject("no_ray")
         if c.wave_slope > 0.0 and self.radar_height_at(t_s) is not None:
@@ -275,11 +298,25 @@ class PickupEstimates:
             # covariance still carried the whole wave height would be trusted ten times too little
             p, o = state.pos_ned_m, fix.observation.pos_ned_m
             local_std_m = max(c.radar_height_std_m, c.wave_slope * math.hypot(o[0] - p[0], o[1] - p[1]))
-            if local_std_m < height_uncertainty_m / 2.0:
+            if local_std_m < height_std_m:
                 fix = triangulate(state, height_m, local_std_m) or fix
+                height_std_m = local_std_m
         tolerance = c.size_tolerance + height_uncertainty_m / max(fix.camera_height_m, 0.1)
-        if not abs(size_ratio(fix) - 1.0) <= tolerance:
+        ratio = size_ratio(fix)
+        if not abs(ratio - 1.0) <= tolerance:
             return self._reject("size")
+        if c.height_from_size and not self._radar_live(t_s) and SIZE_RATIO_RANGE[0] <= ratio <= SIZE_RATIO_RANGE[1]:
+            # the right size for the range, give or take the height's error: the size then tells the range better
+            # than that height where the radar has no height for the sea under the object — below its first range
+            # (the last one, held while the vehicle comes down, was 0.26 m high at 0.31 m) or off to the side
+            sized_m, sized_std_m = height_from_size(
+                fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std)
+            )
+            if sized_std_m < height_std_m:
+                sized = triangulate(state, height_m + sized_m - fix.camera_height_m, sized_std_m)
+                if sized is not None:
+                    fix = sized
+                    self.sized_fixes += 1
         obs = fix.observation
         n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]
         g, d = self.grab_ne_m, self.drifted(t_s)
@@ -302,6 +339,11 @@ class PickupEstimates:
         self._last_fix_t_s = t_s
         self.fix_times_s.append(t_s)
         return True
+
+    def _radar_live(self, t_s: float) -> bool:
+        """The radar measures the sea now (its newest height no older than ``radar_live_s`` at ``t_s``)."""
+        newest = self.over_sea.newest_height
+        return newest is not None and not self.over_sea.radar_lost and t_s - newest[0] <= self.checks.radar_live_s
 
     def _confirmed(self, obs: TargetObservation) -> bool:
         c = self.checks
