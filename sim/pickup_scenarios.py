@@ -18,14 +18,14 @@ whatever ``--runs`` is — so a run can be repeated anywhere (a local process, a
 
 A configuration is what the *app* does differently: ``seapick`` (the defaults) and ``thesis`` (the thesis's
 constant-velocity filter as its Listing 4.1 has it — no innovation gate, every fix fused —, no latency
-compensation, full-frame detection, and the radar's height for every fix: none from the object's apparent size);
-``seapick-lean`` is seapick turning so that its mean lean lies along the
-image's wider side (``lean_yaw_min_tilt_deg``). Each is told the scenario's sea state: the wave filter takes its
-Hs and Tp from it, the constant-velocity filter the process noise tuned for it (``CV_TUNED_Q``; the thesis set Q from
-configuration parameters). Both matter: on a calm sea (10 runs, seed 1) the thesis configuration with a fixed Q
-and seapick's gate picked up 0 of 10, with the tuned Q and the gate 1 of 10 (its uncompensated latency throws
-fixes outside the gate of a confident filter, again and again, until the lock is lost), with the tuned Q and no
-gate 9 of 10.
+compensation, full-frame detection); ``seapick-size`` is seapick taking the height of its fixes low over the
+object from the object's apparent size (``fix_height_from_size``); ``seapick-lean`` is seapick turning so that
+its mean lean lies along the image's wider side (``lean_yaw_min_tilt_deg``). Each is told the scenario's sea
+state: the wave filter takes its Hs and Tp from it, the constant-velocity filter the process noise tuned for it
+(``CV_TUNED_Q``; the thesis set Q from configuration parameters). Both matter: on a calm sea (10 runs, seed 1)
+the thesis configuration with a fixed Q and seapick's gate picked up 0 of 10, with the tuned Q and the gate 1 of
+10 (its uncompensated latency throws fixes outside the gate of a confident filter, again and again, until the
+lock is lost), with the tuned Q and no gate 9 of 10.
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ class EvalConfig:
     full_frame_detection: bool
     innovation_gate: bool = True
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
-    height_from_size: bool = True  # low down, the height from the object's apparent size (the thesis: the radar's)
+    height_from_size: bool = False  # low down, the height from the object's apparent size (``fix_height_from_size``)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -88,9 +88,12 @@ CONFIGS: dict[str, EvalConfig] = {
         latency_compensation=False,
         full_frame_detection=True,
         innovation_gate=False,
-        height_from_size=False,
     ),
     # seapick turning its mean lean along the image's wider side (``app.estimators.lean``); not the default yet
+    # seapick triangulating its fixes low over the object at the height the object's size gives; not the default yet
+    "seapick-size": EvalConfig(
+        "seapick-size", "wave", latency_compensation=True, full_frame_detection=False, height_from_size=True
+    ),
     "seapick-lean": EvalConfig(
         "seapick-lean", "wave", latency_compensation=True, full_frame_detection=False, lean_yaw_min_tilt_deg=5.0
     ),

@@ -155,7 +155,7 @@ class MissionParams(BaseModel):
         0.15, ge=0.02, le=1.0, description="apparent size within this of the expected (plus the waves' share)"
     )
     fix_height_from_size: bool = Field(
-        True,
+        False,
         description="where the radar measures no sea (below its first range, low over the object), triangulate a "
         "detection that passed the size check at the height its apparent size gives; false: the last radar height, "
         "held, or the altitude over the mean sea (the thesis), true/false",

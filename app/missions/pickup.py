@@ -18,10 +18,11 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    height — a relative error that grows as the vehicle comes down. From 10 m in sea state 2 (±0.25 m) a
    detection must be within ±17.5 % of the marker's size: a same-ID print of 0.2 m (20 px, ratio 0.67–0.73
    on rendered frames) is refused, the marker itself (0.93–1.0) is not. A buoy is a sphere of the detector's
-   ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy. A detection
-   that passes, where the radar measures no sea now (below its first range, low over the object: its last
-   height, held while the vehicle comes down, was 0.26 m high at 0.31 m and put fixes 6–7 cm off), is
-   triangulated again at the height its apparent size gives (``height_from_size``), when that is the surer;
+   ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy. With
+   ``height_from_size`` (off by default), a detection that passes, where the radar measures no sea now (below
+   its first range, low over the object: its last height, held while the vehicle comes down, was 0.26 m high
+   at 0.31 m and put fixes 6–7 cm off), is triangulated again at the height its apparent size gives, when that
+   is the surer;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
    must agree within ``confirm_radius_m``, and they must be at least ``confirm_fraction`` of the frames of that
    window (M of N, as a radar tracker confirms a track); only then is the filter started (with the newest).
@@ -95,7 +96,7 @@ class FixChecks:
     confirm_radius_m: float = 0.5
     confirm_fraction: float = 0.3  # … and they are at least this share of the frames in the window (M of N)
     height_max_age_s: float = 0.5  # a radar height older than this is not used
-    height_from_size: bool = True  # a detection that passed the size check measures the range to the object …
+    height_from_size: bool = False  # a detection that passed the size check measures the range to the object …
     size_model_rel_std: float = 0.02  # … as well as its size is known (print, focal length, tilt on the waves) …
     buoy_diameter_rel_std: float = 0.05  # … and a buoy's diameter is found (a marker's corners: the pixel noise),
     radar_live_s: float = 0.15  # … where the radar measures no sea now: its newest height older than this

@@ -286,16 +286,17 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
     lean = base.model_copy(update=mission_params(sc, CONFIGS["seapick-lean"]))
     assert seapick.lean_yaw_min_tilt_deg is None and thesis.lean_yaw_min_tilt_deg is None  # the heading held
     assert lean.lean_yaw_min_tilt_deg == 5.0 and lean.target_filter == seapick.target_filter
-    # low down, seapick's fixes take the height from the object's size; the thesis's the radar's (held) as it had
+    # low down, seapick-size's fixes take the height from the object's size; the others' the radar's (held)
+    sized = base.model_copy(update=mission_params(sc, CONFIGS["seapick-size"]))
     from app.flight import build_mission_model
     from app.settings import Settings
 
     table = load_mission("pickup")
     checks = {
         name: build_mission_model(table.model_copy(update={"params": params}), Settings()).checks.height_from_size
-        for name, params in (("thesis", thesis), ("seapick", seapick), ("seapick-lean", lean))
+        for name, params in [("thesis", thesis), ("seapick", seapick), ("seapick-size", sized), ("seapick-lean", lean)]
     }
-    assert checks == {"thesis": False, "seapick": True, "seapick-lean": True}
+    assert checks == {"thesis": False, "seapick": False, "seapick-size": True, "seapick-lean": False}
 
 
 def test_a_run_flies_the_same_with_its_report_as_without(tmp_path):

@@ -34,9 +34,11 @@ def world(seed: int = 1):
     return sea, FloatingObject(sea, start_ne_m=(-2.6, -2.1))
 
 
-def model() -> PickupEstimates:
+def model(checks: FixChecks | None = None) -> PickupEstimates:
     return PickupEstimates(
-        SeaPlaneTriangulator.from_settings(CAM), make_target_filter(MissionParams(target_filter="wave", sea_state=2))
+        SeaPlaneTriangulator.from_settings(CAM),
+        make_target_filter(MissionParams(target_filter="wave", sea_state=2)),
+        checks,
     )
 
 
@@ -100,10 +102,10 @@ def _disc(camera, truth, t_s, centre_ned, diameter_m, rng):
     return (float(u), float(v)), float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
 
 
-async def run_scenario(seconds=8.0, altitude_m=10.0, clutter=None, buoy_m=None):
+async def run_scenario(seconds=8.0, altitude_m=10.0, clutter=None, buoy_m=None, checks=None):
     vehicle = InProcessVehicle(seed=1, wind=WindConfig.off(), estimator=PERFECT)
     sea, obj = world()
-    est = model()
+    est = model(checks)
     vehicle.add_sample_listener(est.on_vehicle_sample)
     task = asyncio.create_task(vehicle.run())
     try:
@@ -139,15 +141,17 @@ def _glyph_corners(camera, truth, t_s, centre_ne, size_m):
     return (c - c.mean(axis=0)) * scale + c.mean(axis=0) if f.visible else None
 
 
+@pytest.mark.parametrize("height_from_size", [False, True])
 @pytest.mark.looptime(noop_cycles=2)
-async def test_a_printed_glyph_of_the_wrong_size_never_becomes_a_fix():
-    """A 6 cm glyph printed on a floating box 3 m away is seen every frame, crisply, at a fixed place."""
+async def test_a_printed_glyph_of_the_wrong_size_never_becomes_a_fix(height_from_size):
+    """A 6 cm glyph printed on a floating box 3 m away is seen every frame, crisply, at a fixed place; with the
+    height from the size too (the size check comes first: a glyph's size gives it no height)."""
 
     def glyph(t_s, truth, camera, rng):
         c = _glyph_corners(camera, truth, t_s, (3.0, 2.0), 0.06)
         return [] if c is None else [c]
 
-    est, errors = await run_scenario(clutter=glyph)
+    est, errors = await run_scenario(clutter=glyph, checks=FixChecks(height_from_size=height_from_size))
     print(f"rejected {dict(est.rejected)}")
     assert est.rejected["size"] >= 60 and est.fixes > 50  # every glyph frame (~63), and the marker's fixes
     assert max(errors[len(errors) // 2 :]) <= 0.2  # the estimate stays on the object
