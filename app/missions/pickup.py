@@ -308,8 +308,8 @@ class PickupEstimates:
             return self._reject("size")
         if c.height_from_size and not self._radar_live(t_s) and SIZE_RATIO_RANGE[0] <= ratio <= SIZE_RATIO_RANGE[1]:
             # the right size for the range, give or take the height's error: the size then tells the range better
-            # than that height where the radar has no height for the sea under the object — below its first range
-            # (the last one, held while the vehicle comes down, was 0.26 m high at 0.31 m) or off to the side
+            # than that height where the radar measures no sea now — below its first range (its last height, held
+            # while the vehicle comes down, was 0.26 m high at 0.31 m)
             sized_m, sized_std_m = height_from_size(
                 fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std)
             )
