@@ -93,6 +93,7 @@ def build_flight(
             g.inconsistency_max_mps,
             comp.velocity_error_gain,
             g.velocity_error_max_mps,
+            comp.precise_transient_distance_m,
         ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

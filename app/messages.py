@@ -159,12 +159,13 @@ class TargetState:
     vel_ned_mps: Vec3
     acc_ned_mps2: Vec3 = (0.0, 0.0, 0.0)
     yaw_rad: float | None = None
+    precise: bool = False  # follow it as tightly as the autopilot allows (``guidance``'s precise Δ), e.g. landing on it
 
     def predict(self, t_s: float) -> TargetState:
         """Constant-velocity extrapolation to ``t_s`` (acceleration kept, not integrated)."""
         dt_s = t_s - self.t_s
         p = tuple(p + v * dt_s for p, v in zip(self.pos_ned_m, self.vel_ned_mps, strict=True))
-        return TargetState(t_s, (p[0], p[1], p[2]), self.vel_ned_mps, self.acc_ned_mps2, self.yaw_rad)
+        return TargetState(t_s, (p[0], p[1], p[2]), self.vel_ned_mps, self.acc_ned_mps2, self.yaw_rad, self.precise)
 
 
 def norm(v: Vec3) -> float:

@@ -86,6 +86,13 @@ class AutopilotCompensation(_Model):
         le=2.0,
         description="τ_lead for this autopilot (its velocity response's lag); unset: guidance.velocity_lead_s, s",
     )
+    precise_transient_distance_m: float | None = Field(
+        None,
+        ge=0.01,
+        le=20.0,
+        description="Δ_p̃ where the mission follows its target tightly (the pickup's last metre: a P gain of "
+        "U_a,max/Δ); unset: guidance.transient_distance_m, m",
+    )
     autopilot_params: dict[ParamName, Annotated[float, Field(allow_inf_nan=False)]] = Field(
         default_factory=dict,
         description="float parameters set on the autopilot (PARAM_SET) once it is ready, before arming; "
@@ -116,7 +123,10 @@ class GuidanceSettings(_Model):
     )
     px4: AutopilotCompensation = Field(
         default_factory=lambda: AutopilotCompensation(
-            integral_gain_per_s2=3.0, inconsistency_tau_s=0.2, velocity_error_gain=2.0
+            integral_gain_per_s2=3.0,
+            inconsistency_tau_s=0.2,
+            velocity_error_gain=2.0,
+            precise_transient_distance_m=0.25,
         ),
         description="compensation for PX4 (offboard velocity control is a velocity loop only)",
     )

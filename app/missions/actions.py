@@ -207,6 +207,7 @@ async def start_descend(io: MissionIO) -> None:
         math.inf if p.final_max_lead_m is None else p.final_max_lead_m,
         p.crest_clearance_m,
         _lean_yaw(io),
+        p.precise_max_drift_mps,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

@@ -108,6 +108,13 @@ class MissionParams(BaseModel):
         "view is smaller than the offset plus the tilt); go on blind only within final_radius_m of the estimate and "
         "moving with it (final_max_speed_mps), else climb back to the final height; unset: no such check, s",
     )
+    precise_max_drift_mps: float = Field(
+        0.6,
+        ge=0.0,
+        le=5.0,
+        description="DESCEND asks guidance for precision (the autopilot's precise Δ, guidance.<autopilot>) while the "
+        "object drifts no faster than this; 0: never, m/s",
+    )
     lean_yaw_min_tilt_deg: float | None = Field(
         None,
         ge=0.0,

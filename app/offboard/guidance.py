@@ -38,7 +38,7 @@ the target-velocity feed-forward. Saturation to the vehicle's limits is the enve
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from app.messages import Vec3
 
@@ -55,6 +55,13 @@ class ConstantBearingParams:
     inconsistency_max_mps: float = 0.5  # its bound per axis, m/s
     velocity_error_gain: float = 0.0  # K_v: horizontal v_sp += K_v (v_sp − v̂), for velocity-only autopilots
     velocity_error_max_mps: float = 1.0  # bound of ‖K_v (v_sp − v̂)‖, m/s
+    precise_transient_distance_m: float | None = None  # Δ_p̃ for a target that asks to be followed tightly (None: Δ_p̃)
+
+    def for_target(self, precise: bool) -> ConstantBearingParams:
+        """These params, with the precise Δ_p̃ for a target that asks for it."""
+        if not precise or self.precise_transient_distance_m is None:
+            return self
+        return replace(self, transient_distance_m=self.precise_transient_distance_m)
 
 
 def approach_speed_mps(distance_m: float, params: ConstantBearingParams) -> float:

@@ -205,7 +205,11 @@ class SetpointLoop:
         pos_err = sub(pos_now, target.pos_ned_m)
         self._last_err_m = norm(pos_err)
         desired = constant_bearing_velocity(
-            pos_now, target.pos_ned_m, target.vel_ned_mps, self._guidance, target.acc_ned_mps2
+            pos_now,
+            target.pos_ned_m,
+            target.vel_ned_mps,
+            self._guidance.for_target(target.precise),
+            target.acc_ned_mps2,
         )
         v_i = self._integrate(now_s, self._hold if why == "hold" else source, pos_err)
         d = self.inconsistency_ned_mps

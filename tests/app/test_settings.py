@@ -70,6 +70,11 @@ def test_default_profile_carries_the_thesis_radar_settings():
         ("radar:\n  tx_power: 7\n", "radar.tx_power", "allowed 0..3 level"),
         ("radar_altitude:\n  clutter_alpha: 1.5\n", "radar_altitude.clutter_alpha", "allowed 0.0..1.0 ratio"),
         ("radar:\n  dac_min: 1200\n", "radar", "dac_min (1200) must be below dac_max (1100)"),
+        (
+            "guidance:\n  px4:\n    precise_transient_distance_m: 0\n",
+            "guidance.px4.precise_transient_distance_m",
+            "allowed 0.01..20.0 m",
+        ),
         # A key given twice (YAML would keep the last silently), at any depth:
         ("guidance:\n  exit_zero_s: 0.5\n  exit_zero_s: 5.0\n", "guidance.exit_zero_s", "line 3, first at line 2"),
         ("radar: {}\nradar: {tx_power: 1}\n", "radar", "duplicate key (line 2, first at line 1)"),

@@ -242,3 +242,29 @@ def test_going_down_onto_the_object_the_water_close_under_it_does_not_lift_it():
     state = target.target_at(t_s + DT)
     assert state is not None and target.plunging and -state.pos_ned_m[2] == pytest.approx(target.height_m)
     assert target.height_m < low_m
+
+
+def test_it_asks_guidance_for_precision_while_it_goes_down_on_a_fresh_fix_and_not_while_it_climbs_back():
+    """Going down onto the object, the target asks for the autopilot's precise Δ (what the vehicle lags the object's
+    wave orbit by there is where it meets the water); climbing back without a fresh fix it does not."""
+    scene = Scene()
+    target = descend(scene)
+    t_s = fly(target, scene, 100.0, 2.0)
+    state = target.target_at(t_s + DT)
+    assert state is not None and state.precise and 2.0 < target.height_m < 4.0
+    scene.last_fix_t_s = t_s  # no fix since: stale after fresh_s (0.5 s), back up to the safety height
+    t_s = fly(target, scene, t_s + DT, 1.0)
+    state = target.target_at(t_s + DT)
+    assert state is not None and not state.precise and target.height_m >= 2.0
+
+
+@pytest.mark.parametrize(("drift_mps", "precise"), [(0.3, True), (0.8, False), (None, False)])
+def test_it_asks_for_precision_only_over_an_object_drifting_slower_than_the_limit(drift_mps, precise):
+    """Over an object drifting 0.77-0.91 m/s (sea state 3) the precise loop's tilt swings lost it from view low
+    down, descent after descent: there (and with no drift known) the target does not ask for precision."""
+    scene = Scene()
+    scene.drift = None if drift_mps is None else ((0.0, 0.0), (drift_mps, 0.0))
+    target = descend(scene, precise_max_drift_mps=0.6)
+    t_s = fly(target, scene, 100.0, 1.0)
+    state = target.target_at(t_s + DT)
+    assert state is not None and state.precise is precise and target.height_m < 4.0

@@ -138,3 +138,20 @@ async def test_velocity_error_feedback_is_horizontal_and_bounded():
 
     await run_ticks(loop, clock, boundary, 1, fast)
     assert boundary.sent[-1] == pytest.approx((0.6, -0.8, 0.0))  # ‖2·(3, −4)‖ = 10 → bounded to 1 m/s
+
+
+@pytest.mark.parametrize(("precise", "north_mps"), [(False, 0.4851), (True, 0.7428)])
+async def test_a_precise_target_gets_the_precise_transient_distance(precise, north_mps):
+    """0.1 m short of a still target: κ = U·0.1/√(0.1² + Δ²) with Δ 0.4 m, or 0.25 m when the target asks for
+    precision (the pickup's final metre)."""
+    loop, clock, boundary = make_loop(precise_transient_distance_m=0.25)
+
+    class Precise(Fixed):
+        def target_at(self, t_s):
+            return TargetState(t_s, self.pos, (0.0, 0.0, 0.0), precise=precise)
+
+    loop.engage(Precise((0.1, 0.0, -5.0)))
+    await run_ticks(
+        loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, (0.0, 0.0, -5.0), (0.0, 0.0, 0.0))
+    )
+    assert boundary.sent[-1][0] == pytest.approx(north_mps, abs=1e-4) and boundary.sent[-1][1:] == (0.0, 0.0)
