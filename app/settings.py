@@ -90,8 +90,8 @@ class AutopilotCompensation(_Model):
         None,
         ge=0.01,
         le=20.0,
-        description="Δ_p̃ where the mission follows its target tightly (the pickup's last metre: a P gain of "
-        "U_a,max/Δ); unset: guidance.transient_distance_m, m",
+        description="Δ_p̃ where the mission follows its target tightly (the pickup going down onto the object: a P "
+        "gain of U_a,max/Δ); unset: guidance.transient_distance_m, m",
     )
     autopilot_params: dict[ParamName, Annotated[float, Field(allow_inf_nan=False)]] = Field(
         default_factory=dict,

@@ -143,7 +143,7 @@ async def test_velocity_error_feedback_is_horizontal_and_bounded():
 @pytest.mark.parametrize(("precise", "north_mps"), [(False, 0.4851), (True, 0.7428)])
 async def test_a_precise_target_gets_the_precise_transient_distance(precise, north_mps):
     """0.1 m short of a still target: κ = U·0.1/√(0.1² + Δ²) with Δ 0.4 m, or 0.25 m when the target asks for
-    precision (the pickup's final metre)."""
+    precision (the pickup going down onto the object)."""
     loop, clock, boundary = make_loop(precise_transient_distance_m=0.25)
 
     class Precise(Fixed):
