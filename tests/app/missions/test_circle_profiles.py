@@ -81,15 +81,20 @@ async def test_on_px4_sih_the_compensation_is_what_makes_the_difference():
 WAVE_ORBIT = {"circle_radius_m": 0.3, "circle_v_reduction_s": 3.0 / (2.0 * math.pi), "circle_laps": 12}
 
 
+def ask_for_precision(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The circle's target asks guidance for precision, as the pickup's does going down onto the object."""
+    plain = CircleTarget.target_at
+    monkeypatch.setattr(CircleTarget, "target_at", lambda self, t_s: replace(plain(self, t_s), precise=True))
+
+
 @pytest.mark.looptime(noop_cycles=2)
 @pytest.mark.parametrize(("profile", "p95_max_m"), [("px4", 0.12), ("px4-sih", 0.16)])
 async def test_px4_follows_a_precise_target_on_a_wave_orbit_closer(profile, p95_max_m, monkeypatch):
     """PX4's velocity loop lags a 3 s orbit by more than the lead can make up; the position loop closes the rest,
-    and its error scales with Δ. A target that asks for precision (the pickup from its final height down) gets
+    and its error scales with Δ. A target that asks for precision (the pickup going down onto the object) gets
     PX4's precise Δ (0.25 m, against 0.4): the pickup's touchdown error came mostly from this lag."""
     loose = await fly_circle(profile, True, circle=WAVE_ORBIT)
-    plain = CircleTarget.target_at
-    monkeypatch.setattr(CircleTarget, "target_at", lambda self, t_s: replace(plain(self, t_s), precise=True))
+    ask_for_precision(monkeypatch)
     tight = await fly_circle(profile, True, circle=WAVE_ORBIT)
     print(f"{profile} wave orbit p95: {loose['tracking_error_p95_m']:.3f} m, precise "
           f"{tight['tracking_error_p95_m']:.3f} m")  # fmt: skip
@@ -101,8 +106,7 @@ async def test_px4_follows_a_precise_target_on_a_wave_orbit_closer(profile, p95_
 async def test_ardupilot_has_no_precise_gain_a_precise_target_flies_as_any(monkeypatch):
     """GUIDED closes its own position loop: at Δ 0.25 m the 4 m circle rang (p95 0.23 m against 0.016)."""
     loose = await fly_circle("ardupilot", True, circle=WAVE_ORBIT)
-    plain = CircleTarget.target_at
-    monkeypatch.setattr(CircleTarget, "target_at", lambda self, t_s: replace(plain(self, t_s), precise=True))
+    ask_for_precision(monkeypatch)
     tight = await fly_circle("ardupilot", True, circle=WAVE_ORBIT)
     # (two flights of the same circle differ by a fraction of a millimetre here: the loop's wake order)
     assert tight["tracking_error_p95_m"] == pytest.approx(loose["tracking_error_p95_m"], abs=0.002)
