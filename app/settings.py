@@ -131,7 +131,9 @@ class GuidanceSettings(_Model):
         description="compensation for PX4 (offboard velocity control is a velocity loop only)",
     )
     ardupilot: AutopilotCompensation = Field(
-        default_factory=lambda: AutopilotCompensation(velocity_lead_s=0.2, autopilot_params={"PSC_JERK_XY": 20.0}),
+        default_factory=lambda: AutopilotCompensation(
+            velocity_lead_s=0.2, precise_transient_distance_m=0.3, autopilot_params={"PSC_JERK_XY": 20.0}
+        ),
         description="compensation for ArduPilot (GUIDED tracks a position target of its own: only its lag is led, "
         "shortened by a higher shaping jerk limit)",
     )

@@ -205,9 +205,9 @@ class DescendTarget(ObjectTarget):
     crest that the radar sees rising under it closer than ``crest_clearance_m`` lifts it: waiting at the final
     height, a crest above the highest of the last minute reached it, and climbing back from low down, the water
     rose faster than the vehicle. Going down on a fresh converged fix over an object drifting no faster than
-    ``precise_max_drift_mps``, its target asks guidance for precision (``TargetState.precise``: PX4's position loop
-    at Δ 0.25 m instead of 0.4, ``guidance.px4``): the vehicle lagged the object's wave orbit by up to 0.15 m there,
-    and where it lags it meets the water."""
+    ``precise_max_drift_mps``, its target asks guidance for precision (``TargetState.precise``: the position loop
+    at Δ 0.25 m on PX4, 0.3 on ArduPilot, instead of 0.4; ``guidance.<autopilot>``): the vehicle lagged the
+    object's wave orbit by up to 0.15 m there, and where it lags it meets the water."""
 
     name = "descend"
 

@@ -103,13 +103,22 @@ async def test_px4_follows_a_precise_target_on_a_wave_orbit_closer(profile, p95_
 
 
 @pytest.mark.looptime(noop_cycles=2)
-async def test_ardupilot_has_no_precise_gain_a_precise_target_flies_as_any(monkeypatch):
-    """GUIDED closes its own position loop: at Δ 0.25 m the 4 m circle rang (p95 0.23 m against 0.016)."""
+async def test_ardupilot_follows_a_precise_target_closer_and_its_circle_does_not_ring(monkeypatch):
+    """GUIDED closes a position loop of its own under ours, so ArduPilot's precise Δ is milder than PX4's (0.3 m,
+    against 0.4): at 0.25 m the 4 m circle rang (p95 0.23 m calm, 0.20 m in wind, against 0.016 and 0.046). At
+    0.3 the wave orbit is followed closer, and the 4 m circle made precise flies as well as the plain one."""
     loose = await fly_circle("ardupilot", True, circle=WAVE_ORBIT)
     ask_for_precision(monkeypatch)
     tight = await fly_circle("ardupilot", True, circle=WAVE_ORBIT)
-    # (two flights of the same circle differ by a fraction of a millimetre here: the loop's wake order)
-    assert tight["tracking_error_p95_m"] == pytest.approx(loose["tracking_error_p95_m"], abs=0.002)
+    calm = await fly_circle("ardupilot", False)
+    wind = await fly_circle("ardupilot", True)
+    print(f"ardupilot wave orbit p95: {loose['tracking_error_p95_m']:.4f} m, precise "
+          f"{tight['tracking_error_p95_m']:.4f} m; 4 m circle precise: calm {calm['tracking_error_p95_m']:.4f}, "
+          f"wind {wind['tracking_error_p95_m']:.4f} m")  # fmt: skip
+    assert tight["tracking_error_p95_m"] <= 0.05 < loose["tracking_error_p95_m"]
+    # the goals of the plain circle (test_circle_tracks_within_the_goal_on_each_calibrated_profile)
+    assert calm["tracking_error_p95_m"] <= 0.04
+    assert wind["tracking_error_p95_m"] <= 0.10
 
 
 def test_app_main_offers_every_simulator_profile():
