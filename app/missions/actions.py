@@ -208,6 +208,7 @@ async def start_descend(io: MissionIO) -> None:
         p.crest_clearance_m,
         _lean_yaw(io),
         p.precise_max_drift_mps,
+        p.touchdown_height_m,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

@@ -106,7 +106,8 @@ class MissionParams(BaseModel):
         le=5.0,
         description="in the final descent, no new fix for this long: the camera has lost the object low down (its "
         "view is smaller than the offset plus the tilt); go on blind only within final_radius_m of the estimate and "
-        "moving with it (final_max_speed_mps), else climb back to the final height; unset: no such check, s",
+        "moving with it (final_max_speed_mps), and only if it reaches touchdown_height_m at descend_speed_mps "
+        "before the fix is older than fix_fresh_s, else climb back to the final height; unset: no such check, s",
     )
     precise_max_drift_mps: float = Field(
         0.6,

@@ -19,6 +19,7 @@ import math
 from collections.abc import Callable
 
 from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot, Vec3
+from app.missions.estimates import Estimates
 from app.missions.pickup import PickupEstimates
 
 Telemetry = Callable[[], TelemetrySnapshot]
@@ -195,8 +196,10 @@ class DescendTarget(ObjectTarget):
     ``final_abort_radius_m``, climbs back to the final height and waits again. The last half metre or so is flown
     blind (the camera's view there is smaller than the object's offset plus the tilt, and the estimate drifts off
     the object by decimetres a second): when no new fix has come for ``blind_gap_s``, the descent goes on only if
-    the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start — else it
-    climbs back to the final height while the camera can still see the object. The desired height never leads
+    the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start, and only
+    if going on at ``speed_mps`` it reaches ``touchdown_height_m`` before its newest fix is older than ``fresh_s``
+    (else it would turn back at the bottom, where crests met it off the object) — else it climbs back to the final
+    height while the camera can still see the object. The desired height never leads
     the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
     would otherwise come down at the envelope's full speed; in the final part by no more than
     ``final_max_lead_m`` (0.5 m of lead there asked for 1 m/s down, and an ArduCopter coming down at that,
@@ -231,9 +234,11 @@ class DescendTarget(ObjectTarget):
         crest_clearance_m: float = 0.0,
         lean_yaw_min_tilt_rad: float | None = None,
         precise_max_drift_mps: float = math.inf,
+        touchdown_height_m: float | None = None,
     ) -> None:
         super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad)
         self.precise_max_drift_mps = precise_max_drift_mps
+        self.touchdown_height_m = touchdown_height_m
         self.speed_mps = speed_mps
         self.safety_height_m = safety_height_m
         self.fresh_s = fresh_s
@@ -282,8 +287,9 @@ class DescendTarget(ObjectTarget):
             over_it = off_m <= self.final_radius_m and slip_mps <= self.final_max_speed_mps
             seeing = t_s - self._fix_seen_s <= self.blind_gap_s
             if self.plunging and not self._committed and not seeing:
-                self._committed = over_it  # going blind: on only right over the object
-                if not over_it:
+                # going blind: on only right over the object, and only if the water is reached on a fresh fix
+                self._committed = over_it and self._reaches_the_water_fresh(snap)
+                if not self._committed:
                     self.plunging = False
                     self.blind_go_arounds += 1
                     self.model.final_descent_given_up = True
@@ -315,6 +321,18 @@ class DescendTarget(ObjectTarget):
         # over a fast drift, where its tilt swings took the object out of a leaning vehicle's view (README)
         precise = good and self._drift_mps(t_s) <= self.precise_max_drift_mps
         return self._aim(t_s, self._clear_of_crests(self.height_m, vehicle_m, snap.height_above_sea_m), precise)
+
+    def _reaches_the_water_fresh(self, snap: Estimates) -> bool:
+        """Would the vehicle, going on down at ``speed_mps``, reach the touchdown height (over the water the radar
+        sees, else over the mean sea) while the newest fix is still fresh (``fresh_s``)? A blind descent that
+        cannot climbs back once its fix is stale — at the bottom, where a crest meets it off the object. Without
+        a ``touchdown_height_m``: yes."""
+        if self.touchdown_height_m is None or snap.fix_age_s is None:
+            return True
+        over_m = snap.height_above_sea_m if snap.height_above_sea_m is not None else snap.height_over_mean_sea_m
+        if over_m is None:
+            return True
+        return snap.fix_age_s + max(0.0, over_m - self.touchdown_height_m) / self.speed_mps <= self.fresh_s
 
     def _drift_mps(self, t_s: float) -> float:
         """How fast the object drifts (the filter's mean drift, without the waves), m/s; inf when unknown."""

@@ -216,6 +216,25 @@ def test_going_blind_right_over_the_object_it_goes_on_down_to_the_water():
     assert target.plunging and target.height_m < low_m
 
 
+@pytest.mark.parametrize(("radar_m", "goes_on"), [(0.35, True), (0.6, False)])
+def test_going_blind_it_goes_on_only_if_it_reaches_the_water_while_its_fix_is_fresh(radar_m, goes_on):
+    """Blind right over the object ~0.28 s after the last fix, going down at 0.5 m/s: from 0.35 m over the water
+    the touchdown height (0.3 m) comes 0.1 s later, on a fix 0.38 s old (fresh: 0.5 s) — on down; from 0.6 m it
+    would come 0.6 s later, on a fix 0.88 s old: stale on the way, the descent would turn back at the bottom, where
+    crests met it off the object. It climbs back now instead, while the camera can still see the object."""
+    scene = Scene(crest_m=0.2)
+    target = descend(scene, blind_gap_s=0.25, touchdown_height_m=0.3)
+    t_s = fly(target, scene, 100.0, 7.0)
+    assert target.plunging
+    scene.radar_m = radar_m
+    scene.last_fix_t_s = t_s  # the camera loses the object right over it
+    fly(target, scene, t_s, 0.3)
+    assert target.plunging is goes_on
+    assert target.blind_go_arounds == (0 if goes_on else 1) and target.go_arounds == 0
+    if not goes_on:
+        assert scene.final_descent_given_up and target.height_m == target.final_height_now_m()
+
+
 def test_a_crest_rising_under_a_vehicle_waiting_for_the_final_part_lifts_it_and_then_it_comes_back():
     scene = Scene(crest_m=0.7)
     target = descend(scene, crest_clearance_m=0.8)
