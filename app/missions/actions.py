@@ -17,11 +17,11 @@ from typing import Protocol
 from app.errors import VehicleError
 from app.messages import Autopilot, LandedState
 from app.missions.circle import CircleMission
+from app.missions.descend_target import DescendTarget
 from app.missions.estimates import MissionModel
 from app.missions.params import MissionParams
 from app.missions.pickup import PickupEstimates
 from app.missions.pickup_targets import (
-    DescendTarget,
     DriftingPoint,
     ObjectTarget,
     SearchPattern,

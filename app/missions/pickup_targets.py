@@ -7,9 +7,7 @@
   the vehicle's altitude, ``app.estimators.sea_level``; not home, and not the swell under the vehicle: riding
   it made the vehicle pump ±1.5 m/s vertically); horizontally the object as the wave filter has it now, its
   velocity and acceleration fed forward, so guidance follows the object's wave orbit as it goes down. With no
-  estimate the loop holds. ``DescendTarget`` lowers that height at ``descend_speed`` only while the fix is
-  fresh and the filter converged; otherwise it climbs back to the safety height, so the vehicle is never
-  below it without a fresh converged fix.
+  estimate the loop holds. ``DescendTarget`` (``app.missions.descend_target``) lowers that height.
 """
 
 from __future__ import annotations
@@ -18,12 +16,10 @@ import itertools
 import math
 from collections.abc import Callable
 
-from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot, Vec3
-from app.missions.estimates import Estimates
+from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot
 from app.missions.pickup import PickupEstimates
 
 Telemetry = Callable[[], TelemetrySnapshot]
-FIX_TIME_TOLERANCE_S = 1e-6  # a fix's time read back as now − its age: the same fix within rounding
 
 
 def expanding_square(
@@ -182,179 +178,3 @@ class VerifyTarget(ObjectTarget):
             (n, e), (vn, ve) = self.last_ne_m, _ = drifted
             return TargetState(t_s, (n, e, down_m), (vn, ve, 0.0))
         return TargetState(t_s, (*self.last_ne_m, down_m), (0.0, 0.0, 0.0))
-
-
-class DescendTarget(ObjectTarget):
-    """Down at ``speed_mps`` over the object while the fix is fresh and the filter converged; else back up to
-    (and waiting at) ``safety_height_m``.
-
-    The final part — below ``final_height_m``, raised to clear the highest recent crest by ``crest_margin_m``
-    (``MeanSeaLevel.crest_m``: a vehicle waiting lower is met by a crest wherever it is) — is flown only right
-    over the object: it starts within ``final_radius_m`` of the estimate, moving with it (relative horizontal speed
-    at most ``final_max_speed_mps``: a vehicle that lags the object's wave orbit slides off it on the way down)
-    and, drifting past
-    ``final_abort_radius_m``, climbs back to the final height and waits again. The last half metre or so is flown
-    blind (the camera's view there is smaller than the object's offset plus the tilt, and the estimate drifts off
-    the object by decimetres a second): when no new fix has come for ``blind_gap_s``, the descent goes on only if
-    the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start, and only
-    if going on at ``speed_mps`` it reaches ``touchdown_height_m`` before its newest fix is older than ``fresh_s``
-    (else it would turn back at the bottom, where crests met it off the object) — else it climbs back to the final
-    height while the camera can still see the object. The desired height never leads
-    the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
-    would otherwise come down at the envelope's full speed; in the final part by no more than
-    ``final_max_lead_m`` (0.5 m of lead there asked for 1 m/s down, and an ArduCopter coming down at that,
-    accelerating upwards at about 1 m/s², sank on for up to 0.5 m when it had to climb back: into the water,
-    off the object). Whenever it is not going down onto the object (waiting for the final part, climbing back), a
-    crest that the radar sees rising under it closer than ``crest_clearance_m`` lifts it: waiting at the final
-    height, a crest above the highest of the last minute reached it, and climbing back from low down, the water
-    rose faster than the vehicle. Going down on a fresh converged fix over an object drifting no faster than
-    ``precise_max_drift_mps``, its target asks guidance for precision (``TargetState.precise``: the position loop
-    at Δ 0.25 m on PX4, 0.3 on ArduPilot, instead of 0.4; ``guidance.<autopilot>``): the vehicle lagged the
-    object's wave orbit by up to 0.15 m there, and where it lags it meets the water."""
-
-    name = "descend"
-
-    def __init__(
-        self,
-        model: PickupEstimates,
-        telemetry: Telemetry,
-        start_height_m: float,
-        speed_mps: float,
-        safety_height_m: float,
-        fresh_s: float,
-        converged_s: float,
-        final_height_m: float = 0.0,
-        final_radius_m: float = math.inf,
-        final_abort_radius_m: float = math.inf,
-        crest_margin_m: float = 0.0,
-        max_lead_m: float = math.inf,
-        final_max_speed_mps: float = math.inf,
-        blind_gap_s: float = math.inf,
-        final_max_lead_m: float = math.inf,
-        crest_clearance_m: float = 0.0,
-        lean_yaw_min_tilt_rad: float | None = None,
-        precise_max_drift_mps: float = math.inf,
-        touchdown_height_m: float | None = None,
-    ) -> None:
-        super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad)
-        self.precise_max_drift_mps = precise_max_drift_mps
-        self.touchdown_height_m = touchdown_height_m
-        self.speed_mps = speed_mps
-        self.safety_height_m = safety_height_m
-        self.fresh_s = fresh_s
-        self.converged_s = converged_s
-        self.final_height_m = final_height_m
-        self.final_radius_m = final_radius_m
-        self.final_abort_radius_m = max(final_abort_radius_m, final_radius_m)
-        self.crest_margin_m = crest_margin_m
-        self.max_lead_m = max_lead_m
-        self.final_max_speed_mps = final_max_speed_mps
-        self.blind_gap_s = blind_gap_s
-        self.final_max_lead_m = min(final_max_lead_m, max_lead_m)
-        self.crest_clearance_m = crest_clearance_m
-        self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
-        self.go_arounds = 0  # final descents given up for drifting off the object
-        self.plunging = False  # in the final part, right over the object
-        self.blind_go_arounds = 0  # final descents given up for going blind off the object
-        self._committed = False  # this final descent went on blind, right over the object
-        self._fix_t_s: float | None = None  # the newest fix (its capture time) …
-        self._fix_seen_s = -math.inf  # … and when it was first seen here
-        self._t_s: float | None = None
-        model.final_descent_given_up = False
-
-    def final_height_now_m(self) -> float:
-        return max(self.final_height_m, self.model.sea_level.crest_m() + self.crest_margin_m)
-
-    def target_at(self, t_s: float) -> TargetState | None:
-        dt_s = 0.0 if self._t_s is None else max(0.0, t_s - self._t_s)
-        self._t_s = t_s
-        snap = self.model.snapshot(t_s)
-        fix_t_s = None if snap.fix_age_s is None else t_s - snap.fix_age_s
-        if fix_t_s is not None and (self._fix_t_s is None or abs(fix_t_s - self._fix_t_s) > FIX_TIME_TOLERANCE_S):
-            self._fix_t_s, self._fix_seen_s = fix_t_s, t_s
-        # DESCEND was entered after ``converged_s`` of convergence; going on down needs a fresh fix and a
-        # filter that is converged now
-        good = snap.fix_age_s is not None and snap.fix_age_s <= self.fresh_s and snap.converged_for_s is not None
-        # and the sea is known: the radar sees it, or (under its first range, near the water) its mean level
-        # was tracked moments ago
-        good = good and (snap.height_above_sea_m is not None or snap.height_over_mean_sea_m is not None)
-        final_m = self.final_height_now_m()
-        if not good:  # climb back to (and wait at) the safety height
-            self.height_m = max(self.height_m, self.safety_height_m)
-            self.plunging = False
-        elif self.height_m <= final_m:
-            off_m, slip_mps = self._off_the_object(t_s)
-            over_it = off_m <= self.final_radius_m and slip_mps <= self.final_max_speed_mps
-            seeing = t_s - self._fix_seen_s <= self.blind_gap_s
-            if self.plunging and not self._committed and not seeing:
-                # going blind: on only right over the object, and only if the water is reached on a fresh fix
-                self._committed = over_it and self._reaches_the_water_fresh(snap)
-                if not self._committed:
-                    self.plunging = False
-                    self.blind_go_arounds += 1
-                    self.model.final_descent_given_up = True
-            if self.plunging and off_m > self.final_abort_radius_m:
-                self.plunging = False
-                self.go_arounds += 1
-                self.model.final_descent_given_up = True
-            elif not self.plunging and over_it and seeing:  # (a stale estimate starts no final descent)
-                self.plunging, self._committed = True, False
-                self.model.final_descent_given_up = False
-            if self.plunging:
-                self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
-            else:
-                self.waits += 1  # the last part only right over the object: wait at the final height until it is
-                self.height_m = final_m
-        elif self._off_the_object(t_s)[0] <= self.final_abort_radius_m:
-            self.height_m = max(final_m, self.height_m - self.speed_mps * dt_s)
-        else:  # off the object on the way down too: hold the height until guidance has caught up with it
-            self.waits += 1
-        vehicle_m = snap.height_over_mean_sea_m
-        lead_m = self.final_max_lead_m if self.height_m < final_m else self.max_lead_m
-        if vehicle_m is not None and self.height_m < vehicle_m - lead_m:
-            self.height_m = vehicle_m - lead_m  # not far ahead of the vehicle on the way down
-        # aim at the object now, its velocity fed forward: aiming at a prediction of it at touchdown (up to 1 s
-        # ahead) put the vehicle up to half a wave orbit off and lost the marker low (sea state 2: 0 of 3
-        # seeds picked up with the lead, 20 of 20 without)
-        # going down on a fresh fix, guidance follows the object as tightly as the autopilot allows (sea state 2, 80
-        # runs in process: 3 touchdowns over 0.10 m off, 8 before, 5 with it from the final height only) — but not
-        # over a fast drift, where its tilt swings took the object out of a leaning vehicle's view (README)
-        precise = good and self._drift_mps(t_s) <= self.precise_max_drift_mps
-        return self._aim(t_s, self._clear_of_crests(self.height_m, vehicle_m, snap.height_above_sea_m), precise)
-
-    def _reaches_the_water_fresh(self, snap: Estimates) -> bool:
-        """Would the vehicle, going on down at ``speed_mps``, reach the touchdown height (over the water the radar
-        sees, else over the mean sea) while the newest fix is still fresh (``fresh_s``)? A blind descent that
-        cannot climbs back once its fix is stale — at the bottom, where a crest meets it off the object. Without
-        a ``touchdown_height_m``: yes."""
-        if self.touchdown_height_m is None or snap.fix_age_s is None:
-            return True
-        over_m = snap.height_above_sea_m if snap.height_above_sea_m is not None else snap.height_over_mean_sea_m
-        if over_m is None:
-            return True
-        return snap.fix_age_s + max(0.0, over_m - self.touchdown_height_m) / self.speed_mps <= self.fresh_s
-
-    def _drift_mps(self, t_s: float) -> float:
-        """How fast the object drifts (the filter's mean drift, without the waves), m/s; inf when unknown."""
-        drifted = self.model.drifted(t_s)
-        return math.inf if drifted is None else math.hypot(*drifted[1])
-
-    def _clear_of_crests(self, height_m: float, vehicle_m: float | None, radar_m: float | None) -> float:
-        """The height to aim at this tick: ``height_m``, raised while the vehicle is not going down onto the object
-        and the radar sees the water under it closer than ``crest_clearance_m`` (a crest rising under it lifts it;
-        the next tick aims at ``height_m`` again)."""
-        if self.plunging or radar_m is None or vehicle_m is None or radar_m >= self.crest_clearance_m:
-            return height_m
-        return max(height_m, vehicle_m + self.crest_clearance_m - radar_m)
-
-    def _off_the_object(self, t_s: float) -> tuple[float, float]:
-        """How far the vehicle is off the estimate (m, horizontal) and how fast it moves relative to it (m/s)."""
-        pv, est = self.telemetry().pos_vel, self.model.estimate(t_s)
-        if pv is None or est is None:
-            return math.inf, math.inf
-        slip = horizontal_distance_m(pv.vel_ned_mps, est.vel_ned_mps)
-        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m), slip
-
-
-def horizontal_distance_m(a: Vec3, b: Vec3) -> float:
-    return math.hypot(a[0] - b[0], a[1] - b[1])

@@ -12,8 +12,9 @@ import pytest
 
 from app.estimators.sea_level import MeanSeaLevel
 from app.messages import PositionVelocityNed, TargetEstimate, TelemetrySnapshot
+from app.missions.descend_target import DescendTarget
 from app.missions.estimates import Estimates
-from app.missions.pickup_targets import DescendTarget, VerifyTarget
+from app.missions.pickup_targets import VerifyTarget
 
 DT = 0.02
 
