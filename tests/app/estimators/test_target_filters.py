@@ -10,7 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from app.estimators.cv_filter import ConstantVelocityFilter
-from app.estimators.target_filter import NIS_GATE_2DOF, OUTLIER_ESCAPE_COUNT
+from app.estimators.target_filter import (
+    ESCAPE_REACH_M,
+    ESCAPE_SPEED_MPS,
+    NIS_GATE_2DOF,
+    OUTLIER_ESCAPE_COUNT,
+)
 from app.estimators.wave_filter import WaveFilter
 from app.messages import TargetObservation
 
@@ -54,18 +59,69 @@ def filters():
     return [ConstantVelocityFilter(), WaveFilter(hs_m=1.25, tp_s=5.6)]
 
 
-@pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
-def test_spike_rejected_and_escape_after_consecutive_outliers(f):
+def locked(f):
+    """``f`` fed a still object at the origin every 0.05 s up to t = 2.45 s."""
     for k in range(50):
         f.update(fix(0.05 * k, 0.0, 0.0, ((1e-4, 0.0), (0.0, 1e-4))))
+    return f
+
+
+@pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
+def test_spike_rejected_and_escape_after_consecutive_outliers(f):
+    locked(f)
     t = 2.5
     r = f.update(fix(t, 30.0, 0.0))
     assert not r.accepted and r.reason == "outlier" and r.nis > NIS_GATE_2DOF
     assert abs(f.estimate(t).pos_ned_m[0]) < 0.05  # the spike changed nothing
-    results = [f.update(fix(t + 0.05 * (i + 1), 30.0, 0.0)) for i in range(OUTLIER_ESCAPE_COUNT - 1)]
-    assert [r.accepted for r in results] == [False] * (OUTLIER_ESCAPE_COUNT - 2) + [True]
-    assert results[-1].reason == "outlier_escape"  # the third in a row: the object really is there
-    assert f.estimate(t + 0.2).pos_ned_m[0] == pytest.approx(30.0, abs=0.5)
+    # the object is 0.8 m off the estimate (as after a blind spell): the third fix there in a row re-initialises
+    results = [f.update(fix(t + 0.05 * (i + 1), 0.8, 0.0)) for i in range(OUTLIER_ESCAPE_COUNT)]
+    assert [r.reason for r in results] == ["outlier"] * (OUTLIER_ESCAPE_COUNT - 1) + ["outlier_escape"]
+    assert f.estimate(t + 0.2).pos_ned_m[0] == pytest.approx(0.8, abs=0.05)
+
+
+@pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
+def test_an_escape_goes_only_where_the_object_could_have_got_since_its_last_fix(f):
+    """Fixes that agree 3 m off the object's last fix: the escape waits until the object, at ESCAPE_SPEED_MPS,
+    could be there; 30 m off it never comes (the lock times out first)."""
+    locked(f)  # last fused fix at the origin, t = 2.45 s
+    times = [round(2.45 + 0.05 * (i + 1), 2) for i in range(24)]
+    results = [f.update(fix(ti, 3.0, 0.0)) for ti in times]
+    first = next(i for i, r in enumerate(results) if r.accepted)
+    reach_s = (3.0 - ESCAPE_REACH_M) / ESCAPE_SPEED_MPS
+    assert times[first] == pytest.approx(2.45 + reach_s) and results[first].reason == "outlier_escape"
+    assert {r.reason for r in results[:first]} == {"outlier"} and {r.reason for r in results[first + 1 :]} == {"fused"}
+    far = locked(type(f)() if isinstance(f, ConstantVelocityFilter) else WaveFilter(hs_m=1.25, tp_s=5.6))
+    reasons = {far.update(fix(2.45 + 0.05 * (i + 1), 30.0, 0.0)).reason for i in range(60)}
+    assert reasons == {"outlier"} and far.estimate(5.45) is not None and far.estimate(5.46) is None
+    assert far.update(fix(5.5, 30.0, 0.0)).reason == "timeout_reinit"
+
+
+@pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
+def test_a_glyph_seen_between_the_objects_fixes_never_takes_the_lock(f):
+    """A printed glyph of the marker 4 m off, reported in bursts of five frames while the marker is out of the
+    detector's window, between the object's own fixes: before, the third glyph fix in a row re-initialised the
+    filter on the glyph (and the marker's next three took it back)."""
+    locked(f)
+    t = 2.45
+    for _ in range(20):
+        for _ in range(5):
+            t = round(t + 1 / 30, 4)
+            assert not f.update(fix(t, 4.0, 0.0)).accepted
+        t = round(t + 1 / 30, 4)
+        assert f.update(fix(t, 0.0, 0.0, ((1e-4, 0.0), (0.0, 1e-4)))).reason == "fused"
+    assert abs(f.estimate(t).pos_ned_m[0]) < 0.05 and f.counts["outlier_escape"] == 0
+
+
+@pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
+def test_scattered_clutter_never_escapes_even_when_the_object_is_gone(f):
+    """Sun glints in the buoy's place, each somewhere else on the sea: outliers that do not agree with one another
+    are no object that moved, however long the object's own fixes stay away."""
+    locked(f)
+    rng = np.random.default_rng(3)
+    for k in range(50):  # 2.5 s of glints only, within the filter's 3 s timeout
+        r_m, b_rad = rng.uniform(3.0, 6.0), rng.uniform(0.0, 2.0 * math.pi)  # 3–6 m off: each one an outlier
+        assert not f.update(fix(2.5 + 0.05 * k, r_m * math.cos(b_rad), r_m * math.sin(b_rad))).accepted
+    assert abs(f.estimate(4.95).pos_ned_m[0]) < 0.1 and f.counts["outlier_escape"] == 0
 
 
 @pytest.mark.parametrize(
@@ -148,7 +204,9 @@ def test_covariance_stays_symmetric_positive_definite(steps, kind):
         f.update(fix(t, n, e, ((var, 0.0), (0.0, var))))
         assert is_spd(f.P)
         est = f.estimate(t + dt)
-        assert est is not None and is_spd(np.array(est.cov_ne_m2))
+        # none only once the lock timed out (fixes that disagree with it and with one another never re-initialise it)
+        assert (est is None) == (t + dt - f.t_s > f.timeout_s)
+        assert est is None or is_spd(np.array(est.cov_ne_m2))
 
 
 @pytest.mark.parametrize("f", filters(), ids=lambda f: f.name)
