@@ -94,6 +94,7 @@ def build_flight(
             comp.velocity_error_gain,
             g.velocity_error_max_mps,
             comp.precise_transient_distance_m,
+            g.separate_vertical,
         ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

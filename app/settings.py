@@ -113,6 +113,11 @@ class GuidanceSettings(_Model):
         le=2.0,
         description="target-acceleration feed-forward τ_lead, ≈ the autopilot velocity-loop lag; 0: thesis law, s",
     )
+    separate_vertical: bool = Field(
+        True,
+        description="the law on the horizontal and the vertical error apart, each with its own κ (false: the "
+        "thesis's one 3-D law, where a climb slackens the horizontal hold)",
+    )
     integral_max_mps: float = Field(0.5, ge=0.0, le=3.0, description="bound of the integral term, m/s")
     integral_within_m: float = Field(
         1.0, gt=0.0, le=20.0, description="integrate the position error only this close to the target, m"

@@ -33,6 +33,13 @@ Two more terms live in the setpoint loop, which sees the telemetry stream (``app
 Far from the target the vehicle closes at U_a,max; within Δ the approach speed falls off linearly
 (κ ≈ U_a,max·‖p̃‖/Δ), so near the target the law is a proportional controller with gain U_a,max/Δ plus
 the target-velocity feed-forward. Saturation to the vehicle's limits is the envelope's job.
+
+Optional separate vertical (``separate_vertical``; the thesis law is one 3-D law): eqs. 2.20–2.21 applied to the
+horizontal error p̃_h and to the vertical error p̃_d apart, each with its own κ — as PX4's and ArduPilot's own
+position controllers hold the two apart. In one 3-D law a climb takes the horizontal hold with it: 1.5 m to
+climb and 0.15 m off the object give κ ≈ U_a,max, of which only p̃_h/‖p̃‖ = 10 % goes to closing the 0.15 m
+(0.19 m/s where the horizontal law alone asks 0.70 at Δ 0.4); climbing back from low over the waves, the vehicle
+slid off the object just as the crests came.
 """
 
 from __future__ import annotations
@@ -56,6 +63,7 @@ class ConstantBearingParams:
     velocity_error_gain: float = 0.0  # K_v: horizontal v_sp += K_v (v_sp − v̂), for velocity-only autopilots
     velocity_error_max_mps: float = 1.0  # bound of ‖K_v (v_sp − v̂)‖, m/s
     precise_transient_distance_m: float | None = None  # Δ_p̃ for a target that asks to be followed tightly (None: Δ_p̃)
+    separate_vertical: bool = False  # the law on the horizontal and the vertical error apart (False: thesis, 3-D)
 
     def for_target(self, precise: bool) -> ConstantBearingParams:
         """These params, with the precise Δ_p̃ for a target that asks for it."""
@@ -94,16 +102,25 @@ def constant_bearing_velocity(
         pos_ned_m[1] - target_pos_ned_m[1],
         pos_ned_m[2] - target_pos_ned_m[2],
     )
-    dist_m = math.sqrt(p_err[0] ** 2 + p_err[1] ** 2 + p_err[2] ** 2)
-    if dist_m < 1e-9:
-        return target_vel_ned_mps
-    kappa = approach_speed_mps(dist_m, params)
-    # v_d = −κ p̃/‖p̃‖ + v_t
+    if params.separate_vertical:
+        v_a = (*approach_velocity(p_err[:2], params), *approach_velocity(p_err[2:], params))
+    else:
+        v_a = approach_velocity(p_err, params)
+    # v_d = v_a + v_t
     return (
-        -kappa * p_err[0] / dist_m + target_vel_ned_mps[0],
-        -kappa * p_err[1] / dist_m + target_vel_ned_mps[1],
-        -kappa * p_err[2] / dist_m + target_vel_ned_mps[2],
+        v_a[0] + target_vel_ned_mps[0],
+        v_a[1] + target_vel_ned_mps[1],
+        v_a[2] + target_vel_ned_mps[2],
     )
+
+
+def approach_velocity(p_err: tuple[float, ...], params: ConstantBearingParams) -> tuple[float, ...]:
+    """v_a = −κ p̃/‖p̃‖ (eqs. 2.20–2.21) for a position error p̃ of any dimension (zero on the target)."""
+    dist_m = math.sqrt(sum(c * c for c in p_err))
+    if dist_m < 1e-9:
+        return tuple(0.0 for _ in p_err)
+    kappa = approach_speed_mps(dist_m, params)
+    return tuple(-kappa * c / dist_m for c in p_err)
 
 
 class PositionIntegral:

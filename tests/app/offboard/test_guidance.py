@@ -87,3 +87,34 @@ def test_integral_freezes_while_saturated_far_away_or_across_a_gap_and_resets():
 def test_integral_off_by_default():
     i = PositionIntegral(P)
     assert i.update((0.5, 0.5, 0.5), 0.02, saturated=False) == (0.0, 0.0, 0.0)
+
+
+# ---- the horizontal and the vertical apart ----------------------------------------------------------------
+
+P_04 = ConstantBearingParams(2.0, 0.4)
+SEP = ConstantBearingParams(2.0, 0.4, separate_vertical=True)
+
+
+def test_apart_a_climb_leaves_the_horizontal_hold_as_it_is():
+    """0.15 m off the target and 1.5 m under it: the one 3-D law spends κ mostly on the climb (0.2 m/s north);
+    apart, the horizontal law closes 0.15 m as if there were no climb, and the climb gets its own κ."""
+    below = (0.0, 0.0, 1.5)  # NED: 1.5 m under the target
+    target = (0.15, 0.0, 0.0)
+    one = constant_bearing_velocity(below, target, (0.0, 0.0, 0.0), P_04)
+    apart = constant_bearing_velocity(below, target, (0.0, 0.0, 0.0), SEP)
+    level = constant_bearing_velocity((0.0, 0.0, 0.0), target, (0.0, 0.0, 0.0), P_04)
+    assert one[0] == pytest.approx(approach_speed_mps(math.hypot(0.15, 1.5), P_04) * 0.15 / math.hypot(0.15, 1.5))
+    assert one[0] < 0.2 < 0.7 < apart[0]
+    assert apart[0] == pytest.approx(level[0]) == pytest.approx(approach_speed_mps(0.15, P_04))
+    assert apart[1] == 0.0 and apart[2] == pytest.approx(-approach_speed_mps(1.5, P_04))  # up, at its own κ
+
+
+@given(
+    st.tuples(*[st.floats(-500, 500)] * 3),
+    st.tuples(*[st.floats(-500, 500)] * 3),
+)
+def test_apart_each_part_is_bounded_by_u_max_and_points_at_the_target(p, pt):
+    v = constant_bearing_velocity(p, pt, (0.0, 0.0, 0.0), SEP)
+    assert math.hypot(v[0], v[1]) <= 2.0 + 1e-9 and abs(v[2]) <= 2.0 + 1e-9
+    # each part points from the vehicle at the target (or is zero)
+    assert (pt[0] - p[0]) * v[0] + (pt[1] - p[1]) * v[1] >= 0.0 and (pt[2] - p[2]) * v[2] >= 0.0
