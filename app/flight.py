@@ -23,7 +23,8 @@ from app.gcs.config import GcsSettings
 from app.gcs.mission import MissionBridge
 from app.messages import Autopilot
 from app.missions.estimates import MissionModel
-from app.missions.pickup import FixChecks, PickupEstimates
+from app.missions.fix_checks import FixChecks
+from app.missions.pickup import PickupEstimates
 from app.missions.pickup_feeds import PickupFeeds
 from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
 from app.missions.table import MissionTable

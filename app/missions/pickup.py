@@ -59,10 +59,10 @@ from app.messages import (
     AttitudeEuler,
     PositionVelocityNed,
     TargetEstimate,
-    TargetObservation,
     VehicleStateNed,
 )
 from app.missions.estimates import Estimates, SensorHealth
+from app.missions.fix_checks import SIZE_RATIO_RANGE, FixChecks, LockConfirmation
 from app.missions.vehicle_over_sea import VehicleOverSea
 
 if TYPE_CHECKING:
@@ -77,34 +77,6 @@ class RadarCalibrator:
 
     max_range_m: float
     capture: Callable[[int], Awaitable[object]]
-
-
-@dataclass(frozen=True, slots=True)
-class FixChecks:
-    marker_size_m: float = 0.30  # edge of the printed marker, m
-    buoy_diameter_m: float = 0.15  # a buoy's diameter (the buoy detector's), m
-    size_tolerance: float = 0.15  # |√(area ratio) − 1| allowed with an exact range …
-    height_uncertainty_m: float = 0.25  # … plus this over the camera's height (the waves: Hs/2)
-    wave_slope: float = 0.0  # the sea's steepest slope (π Hs / L): caps how much the sea under the object differs
-    radar_height_std_m: float = 0.02  # from the sea under the radar d metres away (d · slope, not below this)
-    altitude_uncertainty_m: float = 0.5  # a height from the altitude over the sea reference: this much worse
-    home_above_sea_m: float = 0.0  # before the radar has seen the sea: home (the deck) this far above it
-    sea_level_fresh_s: float = 3.0  # the tracked mean sea counts this long after the radar's last height
-    max_extrapolation_s: float = 0.1  # a frame newer than the newest vehicle sample: carried this far at its speed
-    confirm_frames: int = 3  # agreeing fixes before a new lock
-    confirm_window_s: float = 1.0
-    confirm_radius_m: float = 0.5
-    confirm_fraction: float = 0.3  # … and they are at least this share of the frames in the window (M of N)
-    height_max_age_s: float = 0.5  # a radar height older than this is not used
-    height_from_size: bool = False  # a detection that passed the size check measures the range to the object …
-    size_model_rel_std: float = 0.02  # … as well as its size is known (print, focal length, tilt on the waves) …
-    buoy_diameter_rel_std: float = 0.05  # … and a buoy's diameter is found (a marker's corners: the pixel noise),
-    radar_live_s: float = 0.15  # … where the radar measures no sea now: its newest height older than this
-    converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
-    grab_sighting_radius_m: float = 1.0  # after a grab, the object seen this close to it on the sea: missed
-
-
-SIZE_RATIO_RANGE = (1.0 / 3.0, 3.0)  # a size ratio that far off gives no height (a range wrong by 3×: no object)
 
 
 def largest_eigenvalue(cov: tuple[tuple[float, float], tuple[float, float]]) -> float:
@@ -136,8 +108,7 @@ class PickupEstimates:
         self.over_sea = VehicleOverSea(self.checks, self.history, self.sea_level)
         self._last_frame_t_s: float | None = None
         self._last_fix_t_s: float | None = None
-        self._candidates: deque[TargetObservation] = deque()
-        self._frame_times_s: deque[float] = deque()  # capture times of the frames within the confirmation window
+        self.confirmation = LockConfirmation(self.checks)
         self._converged_since_s: float | None = None
         # where SEARCH searches, at ``datum_t_s`` (moves to the last estimate on a loss), drifting at
         # ``search_drift_ne_mps`` from then on
@@ -245,10 +216,7 @@ class PickupEstimates:
     def on_frame(self, t_s: float) -> None:
         """A camera frame was processed (with or without a detection): the camera is alive."""
         self._last_frame_t_s = t_s
-        frames = self._frame_times_s
-        frames.append(t_s)
-        while frames and t_s - frames[0] > self.checks.confirm_window_s:
-            frames.popleft()
+        self.confirmation.on_frame(t_s)
 
     def on_marker(self, t_s: float, corners_px: ArrayLike, size_m: float | None = None) -> bool:
         """One marker detection at capture time ``t_s``; True when it was fused into the filter. ``size_m`` is the
@@ -327,7 +295,7 @@ class PickupEstimates:
             # grab missed it
             self._grab_sighting_t_s = t_s
         if not self.filter.initialised or self.filter.estimate(t_s) is None:
-            if not self._confirmed(obs):
+            if not self.confirmation.confirmed(obs):
                 self.fix_log.append((t_s, n_m, e_m, "confirming"))
                 return self._reject("confirming")
             self.filter.reset()
@@ -345,25 +313,6 @@ class PickupEstimates:
         """The radar measures the sea now (its newest height no older than ``radar_live_s`` at ``t_s``)."""
         newest = self.over_sea.newest_height
         return newest is not None and not self.over_sea.radar_lost and t_s - newest[0] <= self.checks.radar_live_s
-
-    def _confirmed(self, obs: TargetObservation) -> bool:
-        c = self.checks
-        self._candidates.append(obs)
-        while self._candidates and obs.t_s - self._candidates[0].t_s > c.confirm_window_s:
-            self._candidates.popleft()
-        near = [
-            o
-            for o in self._candidates
-            if math.hypot(o.pos_ned_m[0] - obs.pos_ned_m[0], o.pos_ned_m[1] - obs.pos_ned_m[1]) <= c.confirm_radius_m
-        ]
-        # M of N: a floating object in view is detected in most frames; clutter that comes and goes (glints: a
-        # tenth of the frames, anywhere in view) can agree with itself by chance when the view is small — low
-        # over the deck every glint lies within the confirmation radius — but not in most frames
-        frames = sum(1 for t in self._frame_times_s if obs.t_s - t <= c.confirm_window_s)
-        if len(near) >= c.confirm_frames and len(near) >= c.confirm_fraction * frames:
-            self._candidates.clear()
-            return True
-        return False
 
     def _reject(self, reason: str) -> bool:
         self.rejected[reason] += 1

@@ -21,7 +21,7 @@ from app.estimators.state_history import OutsideHistoryError, StateHistory
 from app.messages import AttitudeEuler, PositionVelocityNed, VehicleStateNed
 
 if TYPE_CHECKING:
-    from app.missions.pickup import FixChecks
+    from app.missions.fix_checks import FixChecks
 
 
 class VehicleOverSea:

@@ -14,8 +14,9 @@ import pytest
 
 from app.estimators.factory import make_target_filter
 from app.estimators.triangulation import SeaPlaneTriangulator
+from app.missions.fix_checks import FixChecks
 from app.missions.params import MissionParams
-from app.missions.pickup import FixChecks, PickupEstimates
+from app.missions.pickup import PickupEstimates
 from app.settings import CameraSettings
 from sim.camera_geometry import GeometricCamera
 from sim.estimator import PERFECT

@@ -7,7 +7,7 @@ import pytest
 from app.estimators.sea_level import MeanSeaLevel
 from app.estimators.state_history import StateHistory
 from app.messages import AttitudeEuler, PositionVelocityNed
-from app.missions.pickup import FixChecks
+from app.missions.fix_checks import FixChecks
 from app.missions.vehicle_over_sea import VehicleOverSea
 
 

@@ -1,0 +1,78 @@
+"""The pickup's defences against false fixes: the limits of its checks (``FixChecks``) and the confirmation a new
+lock needs (``LockConfirmation``). What each check does and why: ``app.missions.pickup``'s docstring. Pure: no
+asyncio, no clock reads.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from app.messages import TargetObservation
+
+
+@dataclass(frozen=True, slots=True)
+class FixChecks:
+    marker_size_m: float = 0.30  # edge of the printed marker, m
+    buoy_diameter_m: float = 0.15  # a buoy's diameter (the buoy detector's), m
+    size_tolerance: float = 0.15  # |√(area ratio) − 1| allowed with an exact range …
+    height_uncertainty_m: float = 0.25  # … plus this over the camera's height (the waves: Hs/2)
+    wave_slope: float = 0.0  # the sea's steepest slope (π Hs / L): caps how much the sea under the object differs
+    radar_height_std_m: float = 0.02  # from the sea under the radar d metres away (d · slope, not below this)
+    altitude_uncertainty_m: float = 0.5  # a height from the altitude over the sea reference: this much worse
+    home_above_sea_m: float = 0.0  # before the radar has seen the sea: home (the deck) this far above it
+    sea_level_fresh_s: float = 3.0  # the tracked mean sea counts this long after the radar's last height
+    max_extrapolation_s: float = 0.1  # a frame newer than the newest vehicle sample: carried this far at its speed
+    confirm_frames: int = 3  # agreeing fixes before a new lock
+    confirm_window_s: float = 1.0
+    confirm_radius_m: float = 0.5
+    confirm_fraction: float = 0.3  # … and they are at least this share of the frames in the window (M of N)
+    height_max_age_s: float = 0.5  # a radar height older than this is not used
+    height_from_size: bool = False  # a detection that passed the size check measures the range to the object …
+    size_model_rel_std: float = 0.02  # … as well as its size is known (print, focal length, tilt on the waves) …
+    buoy_diameter_rel_std: float = 0.05  # … and a buoy's diameter is found (a marker's corners: the pixel noise),
+    radar_live_s: float = 0.15  # … where the radar measures no sea now: its newest height older than this
+    converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
+    grab_sighting_radius_m: float = 1.0  # after a grab, the object seen this close to it on the sea: missed
+
+
+SIZE_RATIO_RANGE = (1.0 / 3.0, 3.0)  # a size ratio that far off gives no height (a range wrong by 3×: no object)
+
+
+class LockConfirmation:
+    """M of N before a new lock: ``confirm_frames`` fixes within ``confirm_window_s`` that agree within
+    ``confirm_radius_m`` of the newest, and at least ``confirm_fraction`` of the frames of that window (as a radar
+    tracker confirms a track)."""
+
+    def __init__(self, checks: FixChecks) -> None:
+        self.checks = checks
+        self._candidates: deque[TargetObservation] = deque()
+        self._frame_times_s: deque[float] = deque()  # capture times of the frames within the window
+
+    def on_frame(self, t_s: float) -> None:
+        """A frame captured at ``t_s`` was processed, with or without a detection."""
+        frames = self._frame_times_s
+        frames.append(t_s)
+        while frames and t_s - frames[0] > self.checks.confirm_window_s:
+            frames.popleft()
+
+    def confirmed(self, obs: TargetObservation) -> bool:
+        """Add a candidate fix; True (and the candidates cleared) when it confirms a lock."""
+        c = self.checks
+        self._candidates.append(obs)
+        while self._candidates and obs.t_s - self._candidates[0].t_s > c.confirm_window_s:
+            self._candidates.popleft()
+        near = [
+            o
+            for o in self._candidates
+            if math.hypot(o.pos_ned_m[0] - obs.pos_ned_m[0], o.pos_ned_m[1] - obs.pos_ned_m[1]) <= c.confirm_radius_m
+        ]
+        # M of N: a floating object in view is detected in most frames; clutter that comes and goes (glints: a
+        # tenth of the frames, anywhere in view) can agree with itself by chance when the view is small — low
+        # over the deck every glint lies within the confirmation radius — but not in most frames
+        frames = sum(1 for t in self._frame_times_s if obs.t_s - t <= c.confirm_window_s)
+        if len(near) >= c.confirm_frames and len(near) >= c.confirm_fraction * frames:
+            self._candidates.clear()
+            return True
+        return False
