@@ -18,14 +18,17 @@ TargetFilterKind = Literal["constant_velocity", "wave"]
 
 class TargetFilterChoice(Protocol):
     """Which motion model to run: for the wave filter the expected WMO sea state (code 0–5), for the
-    constant-velocity filter its process noise (the thesis set Q from configuration parameters); and whether the
-    innovation gate rejects outliers."""
+    constant-velocity filter its process noise (the thesis set Q from configuration parameters); whether the wave
+    filter reads the sea's elevation (its noise, 0: not); and whether the innovation gate rejects outliers."""
 
     @property
     def target_filter(self) -> TargetFilterKind: ...
 
     @property
     def sea_state(self) -> int: ...
+
+    @property
+    def wave_elevation_std_m(self) -> float: ...
 
     @property
     def cv_q_pos_m2ps(self) -> float: ...
@@ -42,4 +45,5 @@ def make_target_filter(choice: TargetFilterChoice) -> LinearTargetFilter:
         gate = choice.innovation_gate
         return ConstantVelocityFilter(choice.cv_q_pos_m2ps, choice.cv_q_vel_m2ps3, innovation_gate=gate)
     sea = SEA_STATES[choice.sea_state]
-    return WaveFilter(sea.hs_m, sea.tp_s, innovation_gate=choice.innovation_gate)
+    elevation_std_m = choice.wave_elevation_std_m if choice.wave_elevation_std_m > 0.0 else None
+    return WaveFilter(sea.hs_m, sea.tp_s, innovation_gate=choice.innovation_gate, elevation_std_m=elevation_std_m)

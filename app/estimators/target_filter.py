@@ -21,6 +21,11 @@ this base does the rest, the same way for every model:
   returned.
 - **Timeout**: no fix for ``timeout_s`` → no estimate; the next fix re-initialises.
 - P is kept symmetric positive-definite: Joseph-form update (filterpy), symmetrised after every step.
+- **Side measurements** (``add_scalar``): a scalar z = h·x measured at ``t_s``, e.g. the sea's elevation that the
+  wave filter reads its orbital velocity from. One newer than the state waits (pending) and is fused on the way to
+  the next fix, in time order; ``estimate`` predicts from the state with the pending ones fused. A late fix's replay
+  takes back the side measurements after its checkpoint and fuses them again in order. Gated at
+  ``SCALAR_GATE_SIGMA`` σ. They do not keep a lock alive: only fixes do.
 
 The rest of the app sees only ``TargetObservation`` in and ``TargetEstimate`` out.
 """
@@ -44,7 +49,20 @@ ESCAPE_AGREE_M = 0.5  # … if each was this close to the one before (plus ESCAP
 ESCAPE_REACH_M = 1.0  # … and the last this close to the last fused fix (plus ESCAPE_SPEED_MPS × the time since):
 ESCAPE_SPEED_MPS = 2.0  # faster than the object's drift and wave orbit together (sea state 3's orbit: ±0.6 m)
 
+SCALAR_GATE_SIGMA = 4.0  # a side measurement this many σ off the prediction is not fused
+
 Array = np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class ScalarMeasurement:
+    """z = Σ h_values[j]·x[h_index[j]] + noise of variance ``var``, measured at ``t_s``."""
+
+    t_s: float
+    z: float
+    var: float
+    h_index: Array
+    h_values: Array
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,8 +101,13 @@ class LinearTargetFilter(ABC):
         self._outliers: tuple[TargetObservation, ...] = ()  # the rejected fixes since the last fused one that agree
         # (checkpoint before the fix, the fix) for fixes inside the replay window, in time order
         self._history: list[tuple[_Checkpoint, TargetObservation]] = []
+        self._pending: list[ScalarMeasurement] = []  # side measurements after t_s, not yet in x, P (time order)
+        self._side_fused: list[ScalarMeasurement] = []  # those in x, P within the replay window
+        self._head: tuple[float, Array, Array] | None = None  # x, P with the pending ones fused, and their time
+        self.version = 0  # changes whenever what ``estimate`` answers may have changed
         self.counts = {
-            "fused": 0, "outlier": 0, "outlier_escape": 0, "too_late": 0, "init": 0, "late_fused": 0, "non_finite": 0
+            "fused": 0, "outlier": 0, "outlier_escape": 0, "too_late": 0, "init": 0, "late_fused": 0, "non_finite": 0,
+            "side_fused": 0, "side_gated": 0, "side_too_late": 0,
         }  # fmt: skip
 
     # ---- the model ------------------------------------------------------------------------------
@@ -119,6 +142,8 @@ class LinearTargetFilter(ABC):
         self.t_s = self._last_fix_t_s = -math.inf
         self._outliers = ()
         self._history.clear()
+        self._pending, self._side_fused, self._head = [], [], None
+        self.version += 1
 
     @property
     def initialised(self) -> bool:
@@ -130,22 +155,93 @@ class LinearTargetFilter(ABC):
         if not all(math.isfinite(v) for v in values):
             self.counts["non_finite"] += 1
             return UpdateResult(False, None, "non_finite")
+        self.version += 1
         if self.x is not None and obs.t_s < self.t_s:
             return self._fuse_late(obs)
         return self._fuse(obs)
+
+    def add_scalar(self, m: ScalarMeasurement) -> bool:
+        """A side measurement (see the module docstring): False when there is no lock or it is older than the
+        newest fix, changing nothing."""
+        if self.x is None or self.P is None or not m.t_s >= self.t_s or not math.isfinite(m.z):
+            self.counts["side_too_late"] += 1
+            return False
+        self.version += 1
+        i = bisect.bisect_right([p.t_s for p in self._pending], m.t_s)
+        self._pending.insert(i, m)
+        head = self._head
+        if head is not None and i == len(self._pending) - 1 and m.t_s >= head[0]:
+            self._head = (m.t_s, *self._fuse_scalar(head[1], head[2], m.t_s - head[0], m))
+        else:
+            self._head = None
+        return True
+
+    def update_elevation(self, t_s: float, elevation_m: float) -> bool:
+        """The sea's elevation at the object (m, up from the mean sea) measured at ``t_s``; True when it was taken.
+        A model without waves has no use for it."""
+        return False
+
+    def _fuse_scalar(self, x: Array, P: Array, dt_s: float, m: ScalarMeasurement) -> tuple[Array, Array]:
+        """Predict x, P by ``dt_s`` and fuse ``m`` (unless it is more than ``SCALAR_GATE_SIGMA`` σ off)."""
+        F = self.F(dt_s)
+        x = F @ x
+        P = F @ P @ F.T + self.Q(dt_s)
+        idx, h = m.h_index, m.h_values
+        # S = h P hᵀ + r,  y = z − h x,  K = P hᵀ / S,  P ← P − K (h P)
+        Ph = P[:, idx] @ h
+        S = float(h @ Ph[idx]) + m.var
+        y = m.z - float(h @ x[idx])
+        if y * y > SCALAR_GATE_SIGMA**2 * S:
+            self.counts["side_gated"] += 1
+            return x, P
+        K = Ph / S
+        self.counts["side_fused"] += 1
+        P = P - np.outer(K, Ph)
+        return x + K * y, 0.5 * (P + P.T)
+
+    def _state_with_pending(self, t_s: float) -> tuple[float, Array, Array]:
+        """The state with the side measurements up to ``t_s`` fused, and its time."""
+        assert self.x is not None and self.P is not None
+        if not self._pending:
+            return self.t_s, self.x, self.P
+        head = self._head
+        if head is None or head[0] > t_s:
+            t0, x, P = self.t_s, self.x, self.P
+            for m in self._pending:
+                if m.t_s > t_s:
+                    break
+                x, P = self._fuse_scalar(x, P, m.t_s - t0, m)
+                t0 = m.t_s
+            if t0 < self._pending[-1].t_s:
+                return t0, x, P  # not kept: asked for an instant before the newest
+            head = self._head = (t0, x, P)
+        return head
+
+    def _fuse_pending(self, until_t_s: float) -> None:
+        """Fuse the pending side measurements up to ``until_t_s`` into the state, in time order."""
+        assert self.x is not None and self.P is not None
+        while self._pending and self._pending[0].t_s <= until_t_s:
+            m = self._pending.pop(0)
+            self.x, self.P = self._fuse_scalar(self.x, self.P, m.t_s - self.t_s, m)
+            self.t_s = m.t_s
+            self._side_fused.append(m)
+        while self._side_fused and self._side_fused[0].t_s < until_t_s - self.replay_window_s:
+            self._side_fused.pop(0)
+        self._head = None
 
     def estimate(self, t_s: float) -> TargetEstimate | None:
         """The object at ``t_s`` (≥ the last fix), predicted without changing the filter."""
         if self.x is None or self.P is None or t_s - self._last_fix_t_s > self.timeout_s:
             return None
-        dt_s = max(0.0, t_s - self.t_s)
+        state_t_s, x0, P0 = self._state_with_pending(t_s)
+        dt_s = max(0.0, t_s - state_t_s)
         F, H = self.F(dt_s), self.H
-        x = F @ self.x
+        x = F @ x0
         pos = H @ x
         vel, acc = self.velocity_acceleration(x)
         # only the position's covariance: H (F P Fᵀ + Q) Hᵀ = (H F) P (H F)ᵀ + H Q Hᵀ, without the full F P Fᵀ
         HF = H @ F
-        cov = HF @ self.P @ HF.T + H @ self.Q(dt_s) @ H.T
+        cov = HF @ P0 @ HF.T + H @ self.Q(dt_s) @ H.T
         return TargetEstimate(
             t_s,
             (float(pos[0]), float(pos[1]), self._down_m),
@@ -182,6 +278,11 @@ class LinearTargetFilter(ABC):
         self.t_s, self.x, self.P = c.t_s, c.x.copy(), c.P.copy()
         self._outliers, self._last_fix_t_s, self._down_m = c.outliers, c.last_fix_t_s, c.down_m
         self._last_fix_ne_m = c.last_fix_ne_m
+        if self._side_fused:  # the side measurements after the checkpoint wait again, to be fused in order
+            later = [m for m in self._side_fused if m.t_s > c.t_s]
+            self._side_fused = [m for m in self._side_fused if m.t_s <= c.t_s]
+            self._pending = sorted(later + self._pending, key=lambda m: m.t_s)
+        self._head = None
 
     def _init(self, obs: TargetObservation, reason: str) -> UpdateResult:
         z, R = _zR(obs)
@@ -191,6 +292,8 @@ class LinearTargetFilter(ABC):
         self._down_m = obs.pos_ned_m[2]
         self._outliers = ()
         self._history.clear()
+        self._pending = [m for m in self._pending if m.t_s > obs.t_s]
+        self._side_fused, self._head = [], None
         self.counts["init"] += 1
         return UpdateResult(True, None, reason)
 
@@ -199,7 +302,9 @@ class LinearTargetFilter(ABC):
             return self._init(obs, "init")
         if obs.t_s - self._last_fix_t_s > self.timeout_s:
             return self._init(obs, "timeout_reinit")
-        before = self._checkpoint()
+        before = self._checkpoint()  # (without the side measurements since: a replay from it fuses them again)
+        if self._pending:
+            self._fuse_pending(obs.t_s)
         z, R = _zR(obs)
         dt_s = obs.t_s - self.t_s
         # x⁻ = F x,  P⁻ = F P Fᵀ + Q

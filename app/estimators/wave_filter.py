@@ -13,6 +13,16 @@ stationary variance E[ξᵢ²] = qᵢ / (4 λ ωᵢ³) equals the share of the d
 F(dt) and Q(dt) are the exact discretisation (Van Loan) of the continuous model, built per call and cached
 by dt. Predicting to the planned touchdown is F(τ) applied to the state — the oscillators carry the phase
 of the swell forward, which a constant-velocity filter cannot.
+
+**The sea's elevation** (``update_elevation``, with ``elevation_std_m`` set): in linear waves an object on the
+surface moves along each component's direction k̂ with ξ = a sin θ and the surface there stands at η = a cos θ,
+so η = Σᵢ k̂·ξ̇ᵢ / ωᵢ — a measurement of the orbital velocity along the waves that the position fixes give only
+through their noisy differences, and that goes on while the camera is blind (the radar, right over the object,
+reads η). The waves' direction is learnt from the data: k̂ is the direction of E[η u] (u the orbital velocity
+the filter expects before each sample, E an exponentially weighted mean over ``DIRECTION_TAU_S``), used once
+η and u correlate by ``MIN_DIRECTION_CORRELATION`` over at least ``MIN_DIRECTION_SAMPLES`` samples. A spread
+sea's crests come from several directions: what moves across k̂ is not measured, and the noise
+``elevation_std_m`` covers that and the radar's own.
 """
 
 from __future__ import annotations
@@ -24,12 +34,15 @@ import numpy as np
 from scipy.linalg import expm
 
 from app.estimators.sea_state import pierson_moskowitz
-from app.estimators.target_filter import Array, LinearTargetFilter
+from app.estimators.target_filter import Array, LinearTargetFilter, ScalarMeasurement
 
 # Oscillator frequencies as multiples of the sea state's peak ω_p. A Pierson–Moskowitz sea carries much of
 # its orbital displacement above the peak (the ω⁻⁵ tail), so the bank reaches 2.3·ω_p. Chosen on a tuning
 # seed (sim.evaluate, seed 7, sea states 2–4): 8 oscillators beat 3 and 6 at the 1-s horizon.
 OSCILLATOR_RATIOS = (0.7, 0.85, 1.0, 1.15, 1.35, 1.6, 1.9, 2.3)
+DIRECTION_TAU_S = 60.0  # the waves' direction: a mean over about this long …
+MIN_DIRECTION_CORRELATION = 0.3  # … used once η and the orbital velocity correlate this well …
+MIN_DIRECTION_SAMPLES = 30  # … over at least this many samples
 
 
 def oscillator_bank(hs_m: float, tp_s: float, ratios: tuple[float, ...]) -> tuple[Array, Array]:
@@ -63,9 +76,16 @@ class WaveFilter(LinearTargetFilter):
         timeout_s: float = 3.0,
         replay_window_s: float = 1.0,
         innovation_gate: bool = True,
+        elevation_std_m: float | None = None,
     ) -> None:
         super().__init__(timeout_s, replay_window_s, innovation_gate)
         self.damping = damping
+        self.elevation_std_m = elevation_std_m
+        # E[η u], E[η²], E[|u|²] (exponentially weighted), their time and how many samples went in
+        self._eta_u = np.zeros(2)
+        self._eta_eta = self._u_u = 0.0
+        self._direction_t_s: float | None = None
+        self.direction_samples = 0
         if hs_m > 0.0 and tp_s > 0.0:
             self.omegas, variances = oscillator_bank(hs_m, tp_s, ratios)
             self.wave_var_m2 = np.maximum(variances, min_wave_std_m**2)
@@ -151,6 +171,38 @@ class WaveFilter(LinearTargetFilter):
         """The current's part: p_c and v_c per axis (the oscillators average out over a few periods)."""
         n = self.n_axis
         return np.array([x[0], x[n]]), np.array([x[1], x[n + 1]])
+
+    def wave_direction(self) -> tuple[float, float] | None:
+        """The learnt direction the waves travel to (NE unit vector), None until it is sure enough."""
+        norm = float(np.hypot(*self._eta_u))
+        if self.direction_samples < MIN_DIRECTION_SAMPLES or norm <= 0.0:
+            return None
+        if norm < MIN_DIRECTION_CORRELATION * math.sqrt(self._eta_eta * self._u_u):
+            return None
+        return float(self._eta_u[0] / norm), float(self._eta_u[1] / norm)
+
+    def update_elevation(self, t_s: float, elevation_m: float) -> bool:
+        if self.elevation_std_m is None or self.x is None or not math.isfinite(elevation_m) or t_s < self.t_s:
+            return False
+        # the orbital velocity expected now, before this sample: u = Σ ξ̇ᵢ per axis
+        state_t_s, x, _ = self._state_with_pending(t_s)
+        x = self.F(t_s - state_t_s) @ x
+        n = self.n_axis
+        u = np.array([x[3:n:2].sum(), x[n + 3 :: 2].sum()])
+        decay = 1.0 if self._direction_t_s is None else math.exp(-max(0.0, t_s - self._direction_t_s) / DIRECTION_TAU_S)
+        self._eta_u = decay * self._eta_u + elevation_m * u
+        self._eta_eta = decay * self._eta_eta + elevation_m**2
+        self._u_u = decay * self._u_u + float(u @ u)
+        self._direction_t_s = t_s
+        self.direction_samples += 1
+        k = self.wave_direction()
+        if k is None:
+            return False
+        # η = Σᵢ (k̂_n ξ̇_n,i + k̂_e ξ̇_e,i) / ωᵢ
+        m = len(self.omegas)
+        index = np.concatenate((3 + 2 * np.arange(m), n + 3 + 2 * np.arange(m)))
+        values = np.concatenate((k[0] / self.omegas, k[1] / self.omegas))
+        return self.add_scalar(ScalarMeasurement(t_s, elevation_m, self.elevation_std_m**2, index, values))
 
     def velocity_acceleration(self, x: Array) -> tuple[Array, Array]:
         per_axis = x.reshape(2, self.n_axis)  # north, east

@@ -38,6 +38,13 @@ class MissionParams(BaseModel):
         "wave", description="object motion model: the thesis's constant velocity, or current + waves"
     )
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
+    wave_elevation_std_m: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="wave filter: read the object's orbital velocity from the sea's elevation under the vehicle "
+        "(radar), with this noise; 0 = off, m",
+    )
     cv_q_pos_m2ps: float = Field(
         0.01, ge=1e-12, le=100.0, description="constant-velocity filter: position process noise per second, m²/s"
     )

@@ -106,6 +106,7 @@ class PickupEstimates:
         self.sized_fixes = 0  # fixes triangulated at the height their apparent size gave (``height_from_size``)
         self.sea_level = sea_level if sea_level is not None else MeanSeaLevel()
         self.over_sea = VehicleOverSea(self.checks, self.history, self.sea_level)
+        self.over_sea.on_elevation = self._on_elevation
         self._last_frame_t_s: float | None = None
         self._last_fix_t_s: float | None = None
         self.confirmation = LockConfirmation(self.checks)
@@ -309,6 +310,17 @@ class PickupEstimates:
         self.fix_times_s.append(t_s)
         return True
 
+    def _on_elevation(self, t_s: float, elevation_m: float) -> None:
+        """The sea's elevation under the vehicle: the object's too while the vehicle is right over it (within
+        ``elevation_radius_m`` of the estimate; a sea-state-3 wave is ~50 m long) — to the filter."""
+        est = self.estimate(t_s)
+        state = self.state_at(t_s)
+        if est is None or state is None:
+            return
+        p, o = state.pos_ned_m, est.pos_ned_m
+        if math.hypot(p[0] - o[0], p[1] - o[1]) <= self.checks.elevation_radius_m:
+            self.filter.update_elevation(t_s, elevation_m)
+
     def _radar_live(self, t_s: float) -> bool:
         """The radar measures the sea now (its newest height no older than ``radar_live_s`` at ``t_s``)."""
         newest = self.over_sea.newest_height
@@ -325,7 +337,7 @@ class PickupEstimates:
         ask for the same instant several times per tick)."""
         if not self.filter.initialised:
             return None
-        key = (t_s, self.fixes, self.filter.t_s)
+        key = (t_s, self.fixes, self.filter.version)
         if self._estimate_cache is None or self._estimate_cache[0] != key:
             self._estimate_cache = (key, self.filter.estimate(t_s))
         return self._estimate_cache[1]

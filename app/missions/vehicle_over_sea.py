@@ -7,12 +7,17 @@ vehicle's altitude at their time is known. Asked: the vehicle at a frame's captu
 past the newest sample at its speed), the height above the sea then (``height_at``: the radar's, else the
 altitude over the sea reference), the newest radar height (``height_above_sea_m``) and the altitude over the
 tracked mean sea (``height_over_mean_sea_m``). The limits are ``FixChecks``'. Pure: no asyncio, no clock reads.
+
+Each sea-surface sample also gives the sea's elevation under the vehicle, up from the mean of the samples over
+the last ``ELEVATION_WINDOW_S`` (two wave periods and more up to sea state 3; the tracked mean sea itself follows
+a third of a sea-state-3 swell), handed to ``on_elevation`` once that window is nearly full.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from app.estimators.lean import MeanLean
@@ -22,6 +27,10 @@ from app.messages import AttitudeEuler, PositionVelocityNed, VehicleStateNed
 
 if TYPE_CHECKING:
     from app.missions.fix_checks import FixChecks
+
+ELEVATION_WINDOW_S = 12.0  # the elevation is measured from the mean sea surface over this long …
+ELEVATION_MIN_SPAN_S = 10.0  # … once samples span this much of it without a gap longer than …
+ELEVATION_MAX_GAP_S = 1.0  # … this
 
 
 class VehicleOverSea:
@@ -36,6 +45,9 @@ class VehicleOverSea:
         self.newest_height: tuple[float, float] | None = None  # (t_s, m)
         self._heights: deque[tuple[float, float]] = deque(maxlen=64)  # recent ones, for the height at capture time
         self._heights_to_level: deque[tuple[float, float]] = deque(maxlen=64)  # waiting for the vehicle's altitude
+        self._surface: deque[tuple[float, float]] = deque()  # (t_s, sea surface down) over ELEVATION_WINDOW_S
+        self._surface_sum_m = 0.0
+        self.on_elevation: Callable[[float, float], None] | None = None  # (t_s, elevation m, up)
 
     def on_vehicle_sample(self, sample: PositionVelocityNed | AttitudeEuler, received_s: float = 0.0) -> None:
         if isinstance(sample, PositionVelocityNed):
@@ -65,7 +77,24 @@ class VehicleOverSea:
                 self._heights_to_level.popleft()
                 continue
             self._heights_to_level.popleft()
-            self.sea_level.update(t_s, state.pos_ned_m[2] + h)
+            surface_down_m = state.pos_ned_m[2] + h
+            self.sea_level.update(t_s, surface_down_m)
+            self._note_surface(t_s, surface_down_m)
+
+    def _note_surface(self, t_s: float, down_m: float) -> None:
+        """One sea-surface sample into the window; its elevation over the window's mean to ``on_elevation``."""
+        surface = self._surface
+        if surface and (t_s <= surface[-1][0] or t_s - surface[-1][0] > ELEVATION_MAX_GAP_S):
+            if t_s <= surface[-1][0]:
+                return
+            surface.clear()  # a gap: the mean starts over
+            self._surface_sum_m = 0.0
+        surface.append((t_s, down_m))
+        self._surface_sum_m += down_m
+        while t_s - surface[0][0] > ELEVATION_WINDOW_S:
+            self._surface_sum_m -= surface.popleft()[1]
+        if self.on_elevation is not None and t_s - surface[0][0] >= ELEVATION_MIN_SPAN_S:
+            self.on_elevation(t_s, self._surface_sum_m / len(surface) - down_m)
 
     def height_at(self, t_s: float) -> tuple[float, float] | None:
         """The height above the sea at ``t_s`` and how uncertain it is, m: the radar's when it has one, else the
