@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from app.estimators.sea_state import SEA_STATES
-from app.estimators.target_filter import LinearTargetFilter
+from app.estimators.target_filter import LinearTargetFilter, ScalarMeasurement
 from app.estimators.wave_filter import WaveFilter
 from app.messages import TargetObservation
 from sim.fixes import FixConfig, make_fixes
@@ -110,3 +110,52 @@ def test_a_model_without_waves_takes_no_elevation() -> None:
     f: LinearTargetFilter = ConstantVelocityFilter(0.1, 0.1)
     f.update(TargetObservation(0.0, (0.0, 0.0, 0.0), ((0.01, 0.0), (0.0, 0.01))))
     assert not f.update_elevation(0.1, 0.2)
+
+
+def side(t_s: float, z: float) -> ScalarMeasurement:
+    """A side measurement of the first oscillator's north velocity."""
+    return ScalarMeasurement(t_s, z, 0.01, np.array([3]), np.array([1.0]))
+
+
+def fix_at(t_s: float, n_m: float) -> TargetObservation:
+    return TargetObservation(t_s, (n_m, 0.0, 0.0), ((0.01, 0.0), (0.0, 0.01)))
+
+
+def test_side_measurements_are_fused_in_time_order_with_fixes_even_around_a_late_fix() -> None:
+    ss = SEA_STATES[3]
+    in_order, late = WaveFilter(ss.hs_m, ss.tp_s), WaveFilter(ss.hs_m, ss.tp_s)
+    in_order.update(fix_at(1.0, 0.0))
+    assert in_order.add_scalar(side(1.05, 0.2))
+    in_order.update(fix_at(1.1, 0.03))
+    in_order.update(fix_at(1.2, 0.05))
+    assert in_order.add_scalar(side(1.25, 0.3))
+    late.update(fix_at(1.0, 0.0))
+    late.add_scalar(side(1.05, 0.2))
+    late.update(fix_at(1.2, 0.05))
+    late.add_scalar(side(1.25, 0.3))
+    assert late.update(fix_at(1.1, 0.03)).reason == "late_fused"  # the fix at 1.1 s comes after the one at 1.2 s
+    a, b = in_order.estimate(1.4), late.estimate(1.4)
+    assert a is not None and b is not None
+    np.testing.assert_allclose(a.pos_ned_m, b.pos_ned_m, atol=1e-12)
+    np.testing.assert_allclose(a.vel_ned_mps, b.vel_ned_mps, atol=1e-12)
+    np.testing.assert_allclose(a.cov_ne_m2, b.cov_ne_m2, atol=1e-15)
+    # and the side measurement at 1.25 s moved the estimate: without it the answer differs
+    without = WaveFilter(ss.hs_m, ss.tp_s)
+    for t_s, n_m in ((1.0, 0.0), (1.1, 0.03), (1.2, 0.05)):
+        without.update(fix_at(t_s, n_m))
+    w = without.estimate(1.4)
+    assert w is not None and abs(w.vel_ned_mps[0] - a.vel_ned_mps[0]) > 0.01
+    assert not in_order.add_scalar(side(1.15, 0.1))  # older than the newest fix: too late, nothing changes
+    assert in_order.counts["side_too_late"] == 1
+
+
+def test_a_side_measurement_far_off_the_prediction_is_not_fused() -> None:
+    ss = SEA_STATES[3]
+    f = WaveFilter(ss.hs_m, ss.tp_s)
+    f.update(fix_at(1.0, 0.0))
+    before = f.estimate(1.2)
+    assert f.add_scalar(side(1.1, 50.0))  # 50 m/s: a glitch
+    after = f.estimate(1.2)
+    assert before is not None and after is not None
+    assert f.counts["side_gated"] == 1 and f.counts["side_fused"] == 0
+    np.testing.assert_allclose(after.pos_ned_m, before.pos_ned_m, atol=1e-12)

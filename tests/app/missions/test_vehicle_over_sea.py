@@ -43,3 +43,36 @@ def test_heights_become_the_mean_sea_only_once_the_vehicles_altitude_at_their_ti
     assert last is not None and last.down_m == pytest.approx(-1.0)  # 6 m up, 5 m over the sea: sea 1 m up
     assert v.height_over_mean_sea_m(1.1) == pytest.approx(5.0)
     assert v.height_at(1.05) == (pytest.approx(5.0), FixChecks().height_uncertainty_m)  # the radar's
+
+
+def test_the_seas_elevation_is_measured_from_the_mean_surface_once_the_window_is_nearly_full():
+    """A swell of ±0.6 m, 5.6 s, under a vehicle bobbing 0.3 m at another period: the elevations handed on are the
+    swell's within 5 cm, from 10 s of samples on; a 2 s gap starts the mean over."""
+    import math
+
+    from app.missions.vehicle_over_sea import ELEVATION_MIN_SPAN_S
+
+    v = over_sea()
+    got: list[tuple[float, float]] = []
+    v.on_elevation = lambda t_s, eta_m: got.append((t_s, eta_m))
+
+    def swell(t_s: float) -> float:
+        return 0.6 * math.sin(2.0 * math.pi * t_s / 5.6)
+
+    def fly(t0_s: float, t1_s: float) -> None:
+        t_s = t0_s
+        while t_s < t1_s:
+            down_m = -4.0 + 0.3 * math.sin(2.0 * math.pi * t_s / 9.0)  # sea's mean 0.5 m below the origin
+            v.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, down_m), (0.0, 0.0, 0.0)))
+            v.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+            v.on_height(t_s, 0.5 - down_m - swell(t_s))
+            t_s = round(t_s + 1.0 / 15.0, 6)
+
+    fly(0.0, 30.0)
+    assert got and got[0][0] >= ELEVATION_MIN_SPAN_S
+    assert max(abs(eta - swell(t)) for t, eta in got) < 0.05
+    n = len(got)
+    fly(32.0, 50.0)  # 2 s without the sea: the mean starts over
+    again = got[n:]
+    assert again and again[0][0] >= 32.0 + ELEVATION_MIN_SPAN_S
+    assert max(abs(eta - swell(t)) for t, eta in again) < 0.05
