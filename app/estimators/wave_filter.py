@@ -41,8 +41,8 @@ from app.estimators.target_filter import Array, LinearTargetFilter, ScalarMeasur
 # seed (sim.evaluate, seed 7, sea states 2–4): 8 oscillators beat 3 and 6 at the 1-s horizon.
 OSCILLATOR_RATIOS = (0.7, 0.85, 1.0, 1.15, 1.35, 1.6, 1.9, 2.3)
 DIRECTION_TAU_S = 60.0  # the waves' direction: a mean over about this long …
-MIN_DIRECTION_CORRELATION = 0.3  # … used once η and the orbital velocity correlate this well …
-MIN_DIRECTION_SAMPLES = 30  # … over at least this many samples
+MIN_DIRECTION_CORRELATION = 0.5  # … used once η and the orbital velocity correlate this well …
+MIN_DIRECTION_SAMPLES = 150  # … over at least this many samples (10 s of a radar at 15 Hz)
 
 
 def oscillator_bank(hs_m: float, tp_s: float, ratios: tuple[float, ...]) -> tuple[Array, Array]:

@@ -34,7 +34,7 @@ class FixChecks:
     buoy_diameter_rel_std: float = 0.05  # … and a buoy's diameter is found (a marker's corners: the pixel noise),
     radar_live_s: float = 0.15  # … where the radar measures no sea now: its newest height older than this
     converged_sigma_m: float = 0.10  # filter position σ (√ of the larger eigenvalue) for "converged"
-    elevation_radius_m: float = 2.0  # the sea's elevation under the vehicle is the object's this close to it
+    elevation_radius_m: float = 0.5  # the sea's elevation under the vehicle is the object's this close to it
     grab_sighting_radius_m: float = 1.0  # after a grab, the object seen this close to it on the sea: missed
 
 

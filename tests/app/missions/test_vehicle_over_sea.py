@@ -76,3 +76,30 @@ def test_the_seas_elevation_is_measured_from_the_mean_surface_once_the_window_is
     again = got[n:]
     assert again and again[0][0] >= 32.0 + ELEVATION_MIN_SPAN_S
     assert max(abs(eta - swell(t)) for t, eta in again) < 0.05
+
+
+def test_the_mission_hands_the_elevation_to_the_filter_only_right_over_the_object():
+    """``PickupEstimates`` forwards the sea's elevation under the vehicle only within ``elevation_radius_m`` of the
+    estimate: 2 m off, the sea there is another part of the wave."""
+    import math
+
+    from app.estimators.triangulation import SeaPlaneTriangulator
+    from app.estimators.wave_filter import WaveFilter
+    from app.messages import TargetObservation
+    from app.missions.pickup import PickupEstimates
+    from app.settings import CameraSettings
+
+    for off_m, handed in ((0.3, True), (2.0, False)):
+        f = WaveFilter(1.25, 5.58, elevation_std_m=0.05)
+        est = PickupEstimates(SeaPlaneTriangulator.from_settings(CameraSettings()), f)
+        assert est.checks.elevation_radius_m == 0.5
+        f.update(TargetObservation(0.0, (10.0, 5.0, 0.0), ((0.01, 0.0), (0.0, 0.01))))
+        t_s = 0.0
+        while t_s < 20.0:
+            est.on_vehicle_sample(PositionVelocityNed(t_s, (10.0 + off_m, 5.0, -3.0), (0.0, 0.0, 0.0)))
+            est.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+            est.on_height(t_s, 3.0 + 0.5 * math.sin(t_s))
+            f.update(TargetObservation(t_s, (10.0, 5.0, 0.0), ((0.01, 0.0), (0.0, 0.01))))  # the object, still
+            t_s = round(t_s + 1.0 / 15.0, 6)
+        # from 10 s of sea on (ELEVATION_MIN_SPAN_S), 15 a second
+        assert f.direction_samples == (pytest.approx(150, abs=2) if handed else 0)
