@@ -25,25 +25,21 @@ def test_three_agreeing_fixes_in_three_frames_confirm_on_the_third() -> None:
     assert not lock.confirmed(fix(3 * FRAME_S, 10.0))  # confirming cleared the candidates: one fix again
 
 
-def test_fixes_that_agree_in_too_few_of_the_frames_do_not_confirm() -> None:
-    """A glint in 3 of 15 frames (20 % < 30 %), always in the same place, is no object."""
-    lock = LockConfirmation(FixChecks())
+def glint_answers(checks: FixChecks) -> list[bool]:
+    """A glint in 3 of 15 frames (20 %), always in the same place: what each of its fixes gets."""
+    lock = LockConfirmation(checks)
     answers = []
     for i in range(15):
         t_s = i * FRAME_S
         lock.on_frame(t_s)
         if i % 5 == 4:
             answers.append(lock.confirmed(fix(t_s, 3.0)))
-    assert answers == [False, False, False]
-    # with no share required the same fixes confirm
-    loose = LockConfirmation(FixChecks(confirm_fraction=0.0))
-    answers = []
-    for i in range(15):
-        t_s = i * FRAME_S
-        loose.on_frame(t_s)
-        if i % 5 == 4:
-            answers.append(loose.confirmed(fix(t_s, 3.0)))
-    assert answers == [False, False, True]
+    return answers
+
+
+def test_fixes_that_agree_in_too_few_of_the_frames_do_not_confirm() -> None:
+    assert glint_answers(FixChecks()) == [False, False, False]  # 20 % < 30 %: no object
+    assert glint_answers(FixChecks(confirm_fraction=0.0)) == [False, False, True]  # no share required: confirmed
 
 
 def test_fixes_farther_apart_than_the_radius_or_the_window_do_not_confirm() -> None:
