@@ -176,9 +176,13 @@ class LinearTargetFilter(ABC):
             self._head = None
         return True
 
+    @property
+    def takes_elevation(self) -> bool:
+        """Whether ``update_elevation`` can use the sea's elevation (a model without waves has no use for it)."""
+        return False
+
     def update_elevation(self, t_s: float, elevation_m: float) -> bool:
-        """The sea's elevation at the object (m, up from the mean sea) measured at ``t_s``; True when it was taken.
-        A model without waves has no use for it."""
+        """The sea's elevation at the object (m, up from the mean sea) measured at ``t_s``; True when it was taken."""
         return False
 
     def _fuse_scalar(self, x: Array, P: Array, dt_s: float, m: ScalarMeasurement) -> tuple[Array, Array]:

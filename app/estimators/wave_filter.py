@@ -181,6 +181,10 @@ class WaveFilter(LinearTargetFilter):
             return None
         return float(self._eta_u[0] / norm), float(self._eta_u[1] / norm)
 
+    @property
+    def takes_elevation(self) -> bool:
+        return self.elevation_std_m is not None
+
     def update_elevation(self, t_s: float, elevation_m: float) -> bool:
         if self.elevation_std_m is None or self.x is None or not math.isfinite(elevation_m) or t_s < self.t_s:
             return False

@@ -106,7 +106,8 @@ class PickupEstimates:
         self.sized_fixes = 0  # fixes triangulated at the height their apparent size gave (``height_from_size``)
         self.sea_level = sea_level if sea_level is not None else MeanSeaLevel()
         self.over_sea = VehicleOverSea(self.checks, self.history, self.sea_level)
-        self.over_sea.on_elevation = self._on_elevation
+        if target_filter.takes_elevation:  # (the window of sea samples it needs is not kept otherwise)
+            self.over_sea.on_elevation = self._on_elevation
         self._last_frame_t_s: float | None = None
         self._last_fix_t_s: float | None = None
         self.confirmation = LockConfirmation(self.checks)

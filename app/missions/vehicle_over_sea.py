@@ -79,10 +79,11 @@ class VehicleOverSea:
             self._heights_to_level.popleft()
             surface_down_m = state.pos_ned_m[2] + h
             self.sea_level.update(t_s, surface_down_m)
-            self._note_surface(t_s, surface_down_m)
+            if self.on_elevation is not None:
+                self._note_surface(t_s, surface_down_m, self.on_elevation)
 
-    def _note_surface(self, t_s: float, down_m: float) -> None:
-        """One sea-surface sample into the window; its elevation over the window's mean to ``on_elevation``."""
+    def _note_surface(self, t_s: float, down_m: float, hand_on: Callable[[float, float], None]) -> None:
+        """One sea-surface sample into the window; its elevation over the window's mean to ``hand_on``."""
         surface = self._surface
         if surface and (t_s <= surface[-1][0] or t_s - surface[-1][0] > ELEVATION_MAX_GAP_S):
             if t_s <= surface[-1][0]:
@@ -93,8 +94,8 @@ class VehicleOverSea:
         self._surface_sum_m += down_m
         while t_s - surface[0][0] > ELEVATION_WINDOW_S:
             self._surface_sum_m -= surface.popleft()[1]
-        if self.on_elevation is not None and t_s - surface[0][0] >= ELEVATION_MIN_SPAN_S:
-            self.on_elevation(t_s, self._surface_sum_m / len(surface) - down_m)
+        if t_s - surface[0][0] >= ELEVATION_MIN_SPAN_S:
+            hand_on(t_s, self._surface_sum_m / len(surface) - down_m)
 
     def height_at(self, t_s: float) -> tuple[float, float] | None:
         """The height above the sea at ``t_s`` and how uncertain it is, m: the radar's when it has one, else the
