@@ -61,16 +61,33 @@ def marker_centre_normalized(corners_xy: FloatArray) -> FloatArray:
 
     ``corners_xy`` are the 4 undistorted normalised corners in order (ArUco: TL, TR, BR, BL).
     """
-    (ax, ay), (bx, by), (cx, cy), (dx, dy) = (tuple(map(float, p)) for p in corners_xy)
+    return marker_centres_normalized(np.asarray(corners_xy, dtype=np.float64).reshape(1, MARKER_CORNERS, 2))[0]
+
+
+def marker_centres_normalized(corners_xy: FloatArray) -> FloatArray:
+    """``marker_centre_normalized`` of N quadrilaterals at once: N×4×2 corners → N×2 centres."""
+    c = np.asarray(corners_xy, dtype=np.float64)
+    ax, ay, bx, by = c[:, 0, 0], c[:, 0, 1], c[:, 1, 0], c[:, 1, 1]
+    cx, cy, dx, dy = c[:, 2, 0], c[:, 2, 1], c[:, 3, 0], c[:, 3, 1]
     # lines through the diagonals, l = p × q in homogeneous coordinates (p = (x, y, 1)); centre = l1 × l2
     l1 = (ay - cy, cx - ax, ax * cy - ay * cx)
     l2 = (by - dy, dx - bx, bx * dy - by * dx)
     w = l1[0] * l2[1] - l1[1] * l2[0]
-    if abs(w) < 1e-12:  # degenerate quadrilateral: fall back to the corner mean (eq. 4.3)
-        return np.asarray(corners_xy.mean(axis=0), dtype=np.float64)
-    x = l1[1] * l2[2] - l1[2] * l2[1]
-    y = l1[2] * l2[0] - l1[0] * l2[2]
-    return np.array([x / w, y / w], dtype=np.float64)
+    degenerate = np.abs(w) < 1e-12
+    safe_w = np.where(degenerate, 1.0, w)
+    out = np.column_stack(((l1[1] * l2[2] - l1[2] * l2[1]) / safe_w, (l1[2] * l2[0] - l1[0] * l2[2]) / safe_w))
+    if degenerate.any():  # degenerate quadrilateral: fall back to the corner mean (eq. 4.3)
+        out[degenerate] = c[degenerate].mean(axis=1)
+    return out
+
+
+# the marker centre's pixel-noise Jacobian: each of the 8 corner coordinates moved by ±0.5 px in turn (16 probes)
+_CORNER_PROBE_STEP_PX = 0.5
+_CORNER_PROBES_PX = np.zeros((4 * MARKER_CORNERS, MARKER_CORNERS, 2))
+for _k in range(2 * MARKER_CORNERS):
+    _CORNER_PROBES_PX[2 * _k, _k // 2, _k % 2] = _CORNER_PROBE_STEP_PX
+    _CORNER_PROBES_PX[2 * _k + 1, _k // 2, _k % 2] = -_CORNER_PROBE_STEP_PX
+_CORNER_PROBES_PX.flags.writeable = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,16 +164,10 @@ class SeaPlaneTriangulator:
         corners = np.asarray(corners_px, dtype=np.float64).reshape(MARKER_CORNERS, 2)
         xy = marker_centre_normalized(self.camera.undistort_to_normalized(corners))
         # ∂centre/∂(8 corner coordinates), central differences, all probes in one undistortion call.
-        step = 0.5
-        probes = [corners]
-        for k in range(2 * MARKER_CORNERS):
-            for sign in (1.0, -1.0):
-                c = corners.copy()
-                c[k // 2, k % 2] += sign * step
-                probes.append(c)
-        xy_all = self.camera.undistort_to_normalized(np.vstack(probes)).reshape(-1, MARKER_CORNERS, 2)
-        centres = np.array([marker_centre_normalized(c) for c in xy_all[1:]])
-        J = ((centres[0::2] - centres[1::2]) / (2 * step)).T  # 2×8
+        probes = np.concatenate((corners[None], corners + _CORNER_PROBES_PX))
+        xy_all = self.camera.undistort_to_normalized(probes.reshape(-1, 2)).reshape(-1, MARKER_CORNERS, 2)
+        centres = marker_centres_normalized(xy_all[1:])
+        J = ((centres[0::2] - centres[1::2]) / (2 * _CORNER_PROBE_STEP_PX)).T  # 2×8
         return self._fix(t_s, xy, self.pixel_std_px**2 * (J @ J.T), state, radar_height_m, height_std_m)
 
     # -- the equations ----------------------------------------------------------------------------
