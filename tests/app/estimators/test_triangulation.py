@@ -17,6 +17,7 @@ from app.estimators.triangulation import (
     SeaPlaneTriangulator,
     camera_height_m,
     marker_centre_normalized,
+    marker_centres_normalized,
     mount_rotation_frd_cam,
 )
 from app.messages import AttitudeEuler, PositionVelocityNed, VehicleStateNed
@@ -143,6 +144,18 @@ def test_the_marker_centre_is_where_the_diagonals_cross_not_the_corner_mean():
     mean_px = TRI.camera.project(np.append(xy.mean(axis=0), 1.0))[0]
     assert np.linalg.norm(centre_px - f.centre_true_px) < 1e-6
     assert np.linalg.norm(mean_px - f.centre_true_px) > 1.0  # eq. 4.3's mean is biased under perspective
+
+
+def test_many_marker_centres_at_once_are_each_quadrilateral_s_own():
+    # where the diagonals cross, row by row; a quadrilateral whose diagonals are parallel (all corners on one
+    # line) falls back to its corner mean without spoiling the others
+    square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    kite = np.array([[0.0, -1.0], [2.0, 0.0], [0.0, 3.0], [-2.0, 0.0]])  # diagonals cross at (0, 0)
+    line = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [5.0, 0.0]])
+    centres = marker_centres_normalized(np.stack([0.1 * square + (0.3, -0.2), kite, line]))
+    assert centres == pytest.approx(np.array([[0.3, -0.2], [0.0, 0.0], [2.0, 0.0]]), abs=1e-12)
+    for quad, centre in zip((kite, line), centres[1:], strict=True):
+        assert np.array_equal(marker_centre_normalized(quad), centre)
 
 
 # -- lever arms ------------------------------------------------------------------------------------------
