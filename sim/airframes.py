@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 from sim import estimator
 from sim.autopilot_modes import Profile
-from sim.dynamics import MultirotorParams
 from sim.estimator import EstimatorErrorParams
+from sim.multirotor import MultirotorParams
 from sim.poscontrol import PosControlParams
 
 DEFAULT = MultirotorParams()

@@ -33,9 +33,10 @@ from sim.autopilot_commands import DATA_STREAMS, Command, CommandHandler
 from sim.autopilot_link import Address, Link, open_links
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, Profile, mode_from_custom
 from sim.autopilot_telemetry import DEFAULT_RATES_HZ, STREAMABLE, Message, TelemetryEncoder
-from sim.dynamics import Dynamics, MultirotorParams
+from sim.dynamics import Dynamics
 from sim.estimator import EstimatorError, EstimatorErrorParams
 from sim.flight_stack import FlightStack
+from sim.multirotor import MultirotorParams
 from sim.stack_types import PositionTarget, StackEvent, Truth
 from sim.state_log import StateLog
 from sim.wind import Wind, WindConfig

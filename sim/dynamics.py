@@ -20,123 +20,19 @@ wind, which is what they do in PX4 too (there the hover-thrust estimator takes c
 
 Optional ArduCopter position control (``pos_control``, see ``sim.poscontrol``): the velocity setpoint is
 shaped into a jerk-limited trajectory and integrated into a position target; the PID tracks
-K_pos·(p_target − p) + v_des with a_des as feed-forward. ``sim.airframes`` holds calibrated sets.
+K_pos·(p_target − p) + v_des with a_des as feed-forward. ``sim.airframes`` holds calibrated sets;
+``sim.multirotor`` the parameters, the command, the truth and the battery.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 from sim.estimator import EstimatorError
-from sim.poscontrol import GuidedVelocityShaper, PosControlParams
+from sim.multirotor import G_MPS2, Battery, ControlInput, MultirotorParams, VehicleState, clamp, wrap_pi
+from sim.poscontrol import GuidedVelocityShaper
 from sim.wind import Vec3, Wind
-
-G_MPS2 = 9.80665
-
-
-@dataclass(frozen=True, slots=True)
-class BatteryParams:
-    """A LiPo pack: ``cells`` in series; the current scales with thrust^1.5 around hover."""
-
-    cells: int = 4
-    capacity_mah: float = 5000.0
-    hover_current_a: float = 15.0  # 5 Ah / 15 A = 20 min hover endurance
-    idle_current_a: float = 1.5
-    disarmed_current_a: float = 0.3
-    internal_resistance_ohm: float = 0.06
-    full_cell_v: float = 4.2
-    empty_cell_v: float = 3.5
-
-
-@dataclass(frozen=True, slots=True)
-class MultirotorParams:
-    """Controller gains and limits (PX4 parameter names in comments) and the airframe."""
-
-    xy_vel_p_acc: float = 1.8  # MPC_XY_VEL_P_ACC, 1/s
-    xy_vel_i_acc: float = 0.4  # MPC_XY_VEL_I_ACC, 1/s²
-    xy_vel_d_acc: float = 0.2  # MPC_XY_VEL_D_ACC, s (on the measured acceleration)
-    z_vel_p_acc: float = 4.0  # MPC_Z_VEL_P_ACC
-    z_vel_i_acc: float = 2.0  # MPC_Z_VEL_I_ACC
-    acc_up_max_mps2: float = 4.0  # MPC_ACC_UP_MAX
-    acc_down_max_mps2: float = 3.0  # MPC_ACC_DOWN_MAX
-    tilt_max_deg: float = 35.0  # MPC_TILT_MAX_AIR
-    vel_hor_max_mps: float = 12.0  # MPC_XY_VEL_MAX
-    vel_up_max_mps: float = 3.0  # MPC_Z_VEL_MAX_UP
-    vel_down_max_mps: float = 1.5  # MPC_Z_VEL_MAX_DN
-    xy_pos_p: float = 0.95  # MPC_XY_P, 1/s
-    z_pos_p: float = 1.0  # MPC_Z_P, 1/s
-    cruise_hor_mps: float = 5.0  # MPC_XY_CRUISE
-    attitude_tau_s: float = 0.08
-    yaw_p: float = 2.8  # MC_YAW_P, 1/s
-    yaw_rate_max_dps: float = 60.0  # MPC_YAWRAUTO_MAX-ish
-    drag_per_s: float = 0.3  # linear drag towards the air-relative velocity
-    thrust_to_weight: float = 2.0
-    pos_control: PosControlParams | None = None  # ArduCopter GUIDED trajectory + position target (None: PX4)
-    battery: BatteryParams = field(default_factory=BatteryParams)
-
-
-@dataclass(frozen=True, slots=True)
-class ControlInput:
-    """What the flight stack asks of the vehicle for one step.
-
-    ``vel_sp_ned_mps`` is the velocity setpoint (NED, m/s); ``yaw_sp_rad`` an absolute yaw or ``None``
-    to keep the heading; ``yaw_rate_sp_radps`` overrides it when given. ``motors_on`` False = no thrust
-    (disarmed, or spinning at idle on the ground). ``shaped`` False: the velocity comes from the autopilot's
-    own position modes (takeoff, hold, land, RTL), which ArduCopter does not pass through its velocity shaping.
-    """
-
-    vel_sp_ned_mps: Vec3 = (0.0, 0.0, 0.0)
-    yaw_sp_rad: float | None = None
-    yaw_rate_sp_radps: float | None = None
-    motors_on: bool = True
-    shaped: bool = True  # a velocity setpoint from outside (ArduCopter shapes it); False: the autopilot's own modes
-
-
-@dataclass(frozen=True, slots=True)
-class VehicleState:
-    """A snapshot of the truth (NED about home, SI units)."""
-
-    pos_ned_m: Vec3
-    vel_ned_mps: Vec3
-    acc_ned_mps2: Vec3
-    roll_rad: float
-    pitch_rad: float
-    yaw_rad: float
-    rates_radps: Vec3  # roll, pitch, yaw rates (Euler-angle derivatives)
-    on_ground: bool
-    thrust_mps2: float  # collective specific thrust
-    wind_ned_mps: Vec3
-
-
-def ahead(s: VehicleState, dt_s: float) -> VehicleState:
-    """``s`` carried ``dt_s`` on at its acceleration and angular rates (the vehicle between two physics ticks, as
-    seen at a time in between); on the ground, as it is."""
-    if dt_s <= 0.0 or s.on_ground:
-        return s
-    p, v, a, r = s.pos_ned_m, s.vel_ned_mps, s.acc_ned_mps2, s.rates_radps
-    h = 0.5 * dt_s * dt_s
-    return VehicleState(
-        pos_ned_m=(p[0] + v[0] * dt_s + a[0] * h, p[1] + v[1] * dt_s + a[1] * h, p[2] + v[2] * dt_s + a[2] * h),
-        vel_ned_mps=(v[0] + a[0] * dt_s, v[1] + a[1] * dt_s, v[2] + a[2] * dt_s),
-        acc_ned_mps2=a,
-        roll_rad=s.roll_rad + r[0] * dt_s,
-        pitch_rad=s.pitch_rad + r[1] * dt_s,
-        yaw_rad=wrap_pi(s.yaw_rad + r[2] * dt_s),
-        rates_radps=r,
-        on_ground=False,
-        thrust_mps2=s.thrust_mps2,
-        wind_ned_mps=s.wind_ned_mps,
-    )
-
-
-def wrap_pi(angle_rad: float) -> float:
-    """Wrap to [−π, π)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def _clamp(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
 
 
 def velocity_from_position(
@@ -157,36 +53,7 @@ def velocity_from_position(
         vn, ve = vn * v_max / v_h, ve * v_max / v_h
     up = params.vel_up_max_mps if max_up_mps is None else max_up_mps
     down = params.vel_down_max_mps if max_down_mps is None else max_down_mps
-    return (vn, ve, _clamp(vd, -up, down))
-
-
-class Battery:
-    """Pack state: remaining charge drains with current; voltage = OCV(remaining) − R·I."""
-
-    def __init__(self, params: BatteryParams) -> None:
-        self.params = params
-        self.consumed_mah = 0.0
-        self.current_a = params.disarmed_current_a
-        self.voltage_v = self._ocv_v(1.0) - params.internal_resistance_ohm * self.current_a
-
-    @property
-    def remaining_frac(self) -> float:
-        return _clamp(1.0 - self.consumed_mah / self.params.capacity_mah, 0.0, 1.0)
-
-    def _ocv_v(self, remaining: float) -> float:
-        p = self.params
-        # A LiPo-like curve: flat in the middle, dropping towards empty.
-        cell_v = p.empty_cell_v + (p.full_cell_v - p.empty_cell_v) * (0.3 * remaining + 0.7 * remaining**2)
-        return p.cells * cell_v
-
-    def step(self, dt_s: float, thrust_mps2: float, motors_on: bool, armed: bool) -> None:
-        p = self.params
-        if motors_on and thrust_mps2 > 0.0:
-            self.current_a = max(p.idle_current_a, p.hover_current_a * (thrust_mps2 / G_MPS2) ** 1.5)
-        else:
-            self.current_a = p.idle_current_a if armed else p.disarmed_current_a
-        self.consumed_mah += self.current_a * dt_s / 3.6
-        self.voltage_v = self._ocv_v(self.remaining_frac) - p.internal_resistance_ohm * self.current_a
+    return (vn, ve, clamp(vd, -up, down))
 
 
 class Dynamics:
@@ -293,7 +160,7 @@ class Dynamics:
 
     def tilt_rad(self) -> float:
         """Angle between the thrust axis and the vertical."""
-        return math.acos(_clamp(math.cos(self._roll_rad) * math.cos(self._pitch_rad), -1.0, 1.0))
+        return math.acos(clamp(math.cos(self._roll_rad) * math.cos(self._pitch_rad), -1.0, 1.0))
 
     def start_airborne(self, vel_ned_mps: Vec3) -> None:
         """Begin in flight at ``vel_ned_mps`` (for replays that start mid-air)."""
@@ -342,14 +209,14 @@ class Dynamics:
         vn_sp, ve_sp = vel_sp[0], vel_sp[1]
         if v_h > pr.vel_hor_max_mps:
             vn_sp, ve_sp = vn_sp * pr.vel_hor_max_mps / v_h, ve_sp * pr.vel_hor_max_mps / v_h
-        vd_sp = _clamp(vel_sp[2], -pr.vel_up_max_mps, pr.vel_down_max_mps)
+        vd_sp = clamp(vel_sp[2], -pr.vel_up_max_mps, pr.vel_down_max_mps)
         v = self.estimate_pos_vel()[1]  # the controller acts on the estimate
         e = (vn_sp - v[0], ve_sp - v[1], vd_sp - v[2])
         # a_sp = K_p e + I − K_d a
         ax = pr.xy_vel_p_acc * e[0] + self._vel_int[0] - pr.xy_vel_d_acc * self._a[0] + acc_ff[0]
         ay = pr.xy_vel_p_acc * e[1] + self._vel_int[1] - pr.xy_vel_d_acc * self._a[1] + acc_ff[1]
         az = pr.z_vel_p_acc * e[2] + self._vel_int[2] + acc_ff[2]
-        az_lim = _clamp(az, -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
+        az_lim = clamp(az, -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
         # What the tilt limit lets through horizontally once the vertical is served (PX4: thrust_max_xy);
         # MPC_ACC_HOR_MAX shapes PX4's own trajectories, not offboard velocity control.
         acc_h_max = (G_MPS2 - az_lim) * self._tan_tilt_max
@@ -371,7 +238,7 @@ class Dynamics:
             if i_h > acc_h_max:
                 self._vel_int[0] *= acc_h_max / i_h
                 self._vel_int[1] *= acc_h_max / i_h
-            self._vel_int[2] = _clamp(self._vel_int[2], -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
+            self._vel_int[2] = clamp(self._vel_int[2], -pr.acc_up_max_mps2, pr.acc_down_max_mps2)
         return ax_lim, ay_lim, az_lim
 
     def _attitude_setpoint(self, acc_sp: Vec3) -> tuple[float, float, float]:
@@ -392,7 +259,7 @@ class Dynamics:
         # Thrust direction −z_b in the heading frame is (−sinθ cosφ, sinφ, cosθ cosφ).
         thrust_fwd = (c * fx + s * fy) / norm
         thrust_right = (-s * fx + c * fy) / norm
-        roll_sp = math.asin(_clamp(thrust_right, -1.0, 1.0))
+        roll_sp = math.asin(clamp(thrust_right, -1.0, 1.0))
         pitch_sp = math.atan2(-thrust_fwd, fz_up / norm)
         thrust = min(fz_up / math.cos(tilt_rad), pr.thrust_to_weight * G_MPS2)
         return roll_sp, pitch_sp, max(thrust, 0.0)
@@ -437,9 +304,9 @@ class Dynamics:
         self._pitch_rad += k * (pitch_sp - self._pitch_rad)
         yaw_rate_max = self._yaw_rate_max_radps
         if control.yaw_rate_sp_radps is not None:
-            yaw_rate = _clamp(control.yaw_rate_sp_radps, -yaw_rate_max, yaw_rate_max)
+            yaw_rate = clamp(control.yaw_rate_sp_radps, -yaw_rate_max, yaw_rate_max)
         elif control.yaw_sp_rad is not None:
-            yaw_rate = _clamp(pr.yaw_p * wrap_pi(control.yaw_sp_rad - self._yaw_rad), -yaw_rate_max, yaw_rate_max)
+            yaw_rate = clamp(pr.yaw_p * wrap_pi(control.yaw_sp_rad - self._yaw_rad), -yaw_rate_max, yaw_rate_max)
         else:
             yaw_rate = 0.0
         if not control.motors_on and self._on_ground:

@@ -42,9 +42,10 @@ from sim.autopilot_modes import (
 )
 from sim.autopilot_params import ParamStore, Tuning
 from sim.command_checks import arming_denial, mode_switch_denial
-from sim.dynamics import ControlInput, Dynamics, VehicleState, ahead
+from sim.dynamics import Dynamics
 from sim.failsafe import SetpointLoss, setpoint_loss
 from sim.land_detector import LandDetector, Spoolup
+from sim.multirotor import ControlInput, VehicleState, ahead
 from sim.navigator import Navigator
 from sim.stack_types import Frame, PositionTarget, ResolvedSetpoint, StackEvent, Truth
 

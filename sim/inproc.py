@@ -47,9 +47,10 @@ from app.offboard.vehicle import SampleListener
 from app.offboard.watchdog import SetpointWatchdog
 from sim import airframes
 from sim.autopilot_modes import DEFAULT_ORIGIN, GeoPoint, MavResult, Mode, Profile, mode_for
-from sim.dynamics import Dynamics, MultirotorParams
+from sim.dynamics import Dynamics
 from sim.estimator import EstimatorError, EstimatorErrorParams
 from sim.flight_stack import FlightStack
+from sim.multirotor import MultirotorParams
 from sim.stack_types import PositionTarget, StackEvent, Truth
 from sim.state_log import StateLog
 from sim.wind import Wind, WindConfig

@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.dynamics import ControlInput, Dynamics, MultirotorParams
+from sim.dynamics import Dynamics
 from sim.flight_stack import PHYSICS_DT_S
+from sim.multirotor import ControlInput, MultirotorParams
 
 
 @dataclass(frozen=True)

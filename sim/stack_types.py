@@ -13,7 +13,8 @@ from enum import IntEnum
 
 from app.messages import FlightMode, LandedState, Vec3
 from sim.autopilot_modes import Mode
-from sim.dynamics import Dynamics, VehicleState
+from sim.dynamics import Dynamics
+from sim.multirotor import VehicleState
 
 IGNORE_POS = (0x1, 0x2, 0x4)
 IGNORE_VEL = (0x8, 0x10, 0x20)

@@ -67,7 +67,8 @@ def test_px4_sih_leaves_a_fifth_of_a_step_after_four_seconds():
 
 def _drift_in_a_gust_m(params) -> float:
     """Zero velocity commanded while a 5 m/s gust sets in: how far the vehicle ends up from where it was."""
-    from sim.dynamics import ControlInput, Dynamics
+    from sim.dynamics import Dynamics
+    from sim.multirotor import ControlInput
     from sim.wind import Wind, WindConfig
 
     dyn = Dynamics(params, Wind(WindConfig(mean_mps=5.0, gust_sigma_mps=0.0, vertical_sigma_mps=0.0)))

@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.dynamics import ControlInput, Dynamics, MultirotorParams, velocity_from_position
+from sim.dynamics import Dynamics, velocity_from_position
+from sim.multirotor import ControlInput, MultirotorParams
 from sim.wind import Wind, WindConfig
 
 DT_S = 0.005

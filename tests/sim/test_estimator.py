@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from sim import airframes, estimator
-from sim.dynamics import ControlInput, Dynamics
+from sim.dynamics import Dynamics
 from sim.estimator import EstimatorError
+from sim.multirotor import ControlInput
 
 
 def _fly_hover(params, est_params, seconds=120.0, seed=3, dt_s=0.01):
