@@ -131,8 +131,10 @@ class VehicleOverSea:
     def height_over_mean_sea_m(self, t_s: float) -> float | None:
         """The vehicle's altitude over the tracked mean sea, while that is fresh (``sea_level_fresh_s``)."""
         last = self.sea_level.last()
+        if last is None or t_s - last.t_s > self.checks.sea_level_fresh_s:
+            return None  # (before the vehicle's state: high up, out of the radar's range, it is asked at 50 Hz)
         state = self.state_at(t_s)
-        if last is None or state is None or t_s - last.t_s > self.checks.sea_level_fresh_s:
+        if state is None:
             return None
         return last.down_m + last.rate_mps * (t_s - last.t_s) - state.pos_ned_m[2]
 
