@@ -105,7 +105,7 @@ class MissionParams(BaseModel):
         0.3, ge=0.02, le=5.0, description="… and moving with it: horizontal speed relative to it at most this, m/s"
     )
     final_abort_radius_m: float = Field(
-        0.2, ge=0.02, le=5.0, description="below the final height, this far off the estimate climbs back to it, m"
+        0.15, ge=0.02, le=5.0, description="below the final height, this far off the estimate climbs back to it, m"
     )
     final_blind_gap_s: float | None = Field(
         None,
