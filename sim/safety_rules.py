@@ -193,7 +193,7 @@ def _finite_in_envelope(tl: _Timeline, limits: Limits) -> list[Violation]:
     out = []
     for s in tl.setpoints:
         vn, ve, vd = s["vel_ned_mps"]
-        if not all(math.isfinite(x) for x in (vn, ve, vd, s["yaw_rad"])):
+        if not all(map(math.isfinite, (vn, ve, vd, s["yaw_rad"]))):
             out.append(Violation("finite_in_envelope", f"{_fmt(s)} yaw={s['yaw_rad']} is not finite"))
         elif math.hypot(vn, ve) > limits.max_h_speed_mps + 1e-3 or not (
             -limits.max_up_mps - 1e-3 <= vd <= limits.max_down_mps + 1e-3

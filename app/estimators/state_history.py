@@ -112,7 +112,7 @@ class StateHistory:
 
     def add_pos_vel(self, s: PositionVelocityNed) -> bool:
         """Store a position/velocity sample; False (and counted) when it is not newer than the newest or not finite."""
-        if not all(math.isfinite(v) for v in (s.t_s, *s.pos_ned_m, *s.vel_ned_mps)):
+        if not all(map(math.isfinite, (s.t_s, *s.pos_ned_m, *s.vel_ned_mps))):
             self.dropped_non_finite += 1
             return False
         newest = self._pos_vel.newest_t()
@@ -124,7 +124,7 @@ class StateHistory:
 
     def add_attitude(self, a: AttitudeEuler) -> bool:
         """Store an attitude sample; False (and counted) when it is not newer than the newest or not finite."""
-        if not all(math.isfinite(v) for v in (a.t_s, a.roll_rad, a.pitch_rad, a.yaw_rad)):
+        if not all(map(math.isfinite, (a.t_s, a.roll_rad, a.pitch_rad, a.yaw_rad))):
             self.dropped_non_finite += 1
             return False
         newest = self._att.newest_t()

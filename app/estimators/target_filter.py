@@ -152,7 +152,7 @@ class LinearTargetFilter(ABC):
     def update(self, obs: TargetObservation) -> UpdateResult:
         """Fuse one fix at its capture time; a fix with a NaN/inf is rejected and counted, changing nothing."""
         values = (obs.t_s, *obs.pos_ned_m, *obs.cov_ne_m2[0], *obs.cov_ne_m2[1])
-        if not all(math.isfinite(v) for v in values):
+        if not all(map(math.isfinite, values)):
             self.counts["non_finite"] += 1
             return UpdateResult(False, None, "non_finite")
         self.version += 1

@@ -162,10 +162,11 @@ class SeaPlaneTriangulator:
         per axis for a square seen head-on).
         """
         corners = np.asarray(corners_px, dtype=np.float64).reshape(MARKER_CORNERS, 2)
-        xy = marker_centre_normalized(self.camera.undistort_to_normalized(corners))
-        # ∂centre/∂(8 corner coordinates), central differences, all probes in one undistortion call.
+        # the corners and, for ∂centre/∂(8 corner coordinates) by central differences, their probes: one
+        # undistortion call
         probes = np.concatenate((corners[None], corners + _CORNER_PROBES_PX))
         xy_all = self.camera.undistort_to_normalized(probes.reshape(-1, 2)).reshape(-1, MARKER_CORNERS, 2)
+        xy = marker_centre_normalized(xy_all[0])
         centres = marker_centres_normalized(xy_all[1:])
         J = ((centres[0::2] - centres[1::2]) / (2 * _CORNER_PROBE_STEP_PX)).T  # 2×8
         return self._fix(t_s, xy, self.pixel_std_px**2 * (J @ J.T), state, radar_height_m, height_std_m)
@@ -189,7 +190,7 @@ class SeaPlaneTriangulator:
         height_std_m: float,
     ) -> SeaPlaneFix | None:
         inputs = (*xy, *state.q_ned_frd, *state.pos_ned_m, radar_height_m, height_std_m)
-        if not all(math.isfinite(float(v)) for v in inputs):
+        if not all(map(math.isfinite, inputs)):
             self.rejected["non_finite"] += 1
             return None  # a NaN pixel, attitude, position or height gives no fix (and poisons no filter)
         R_ned_frd = quat_to_matrix(state.q_ned_frd)

@@ -71,7 +71,7 @@ class LinkHealth:
 
 
 def _finite(*xs: float) -> bool:
-    return all(math.isfinite(x) for x in xs)
+    return all(map(math.isfinite, xs))
 
 
 async def shielded(task: asyncio.Task[None], timeout_s: float) -> None:

@@ -40,7 +40,7 @@ def apply_envelope(
     """
     vn, ve, vd = vel_ned_mps
     acted: list[str] = []
-    if not all(math.isfinite(v) for v in (vn, ve, vd)):
+    if not all(map(math.isfinite, (vn, ve, vd))):
         return Clamped((0.0, 0.0, 0.0), ("non_finite",))
 
     v_h = math.hypot(vn, ve)
