@@ -159,7 +159,7 @@ class MissionParams(BaseModel):
         900.0, ge=60.0, le=7200.0, description="in the air this long without the object: RETURN (battery budget), s"
     )
     grab_fix_max_age_s: float = Field(
-        1.0, ge=0.1, le=10.0, description="at the water with an older fix than this: no grab, climb back, s"
+        0.8, ge=0.1, le=10.0, description="at the water with an older fix than this: no grab, climb back, s"
     )
     land_authorization: bool = Field(
         False, description="descend onto the object only after an operator's authorize_land (thesis), true/false"
