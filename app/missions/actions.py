@@ -25,6 +25,7 @@ from app.missions.pickup_targets import (
     DriftingPoint,
     ObjectTarget,
     SearchPattern,
+    Transit,
     VerifyTarget,
     expanding_square,
 )
@@ -335,8 +336,24 @@ async def lift(io: MissionIO) -> None:
 
 
 async def return_home(io: MissionIO) -> None:
-    home = io.boundary.telemetry().home_ned_m or (0.0, 0.0, 0.0)
-    target = FixedPoint("home", (home[0], home[1], home[2] - io.params.return_altitude_m))
+    """Climb to the return altitude (above home) and fly home at the return speed (``Transit``), from where the
+    vehicle is (without a position yet: to home at guidance's approach speed)."""
+    home, p = io.boundary.telemetry().home_ned_m or (0.0, 0.0, 0.0), io.params
+    pv = io.boundary.telemetry().pos_vel
+    down_m = home[2] - p.return_altitude_m
+    target: Transit | FixedPoint = (
+        FixedPoint("home", (home[0], home[1], down_m))
+        if pv is None
+        else Transit(
+            "home",
+            (pv.pos_ned_m[0], pv.pos_ned_m[1]),
+            (home[0], home[1]),
+            down_m,
+            p.return_speed_mps,
+            p.return_brake_mps2,
+            io.now_s(),
+        )
+    )
     await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 

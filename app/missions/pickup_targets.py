@@ -1,5 +1,6 @@
 """Where guidance takes the vehicle in the pickup mission: target sources for the setpoint loop.
 
+- ``Transit``: straight to a point at a cruise speed (the return home), slowing to a stop there.
 - ``SearchPattern``: an expanding square around a centre at a fixed height above home; the legs are one
   camera footprint apart (less the overlap), the target point moves along them at the search speed (with its
   velocity as feed-forward), and the pattern ends at ``max_radius_m`` (the state's timeout bounds the time).
@@ -57,6 +58,59 @@ class DriftingPoint:
 
     def observe(self, sample: PositionVelocityNed) -> None:
         pass
+
+
+class Transit:
+    """From ``start_ne_m`` straight to ``to_ne_m`` at ``down_m``, at up to ``speed_mps`` — as PX4's and ArduPilot's
+    own returns fly at cruise speed (PX4 MPC_XY_CRUISE, 5 m/s by default), where guidance alone would close at
+    its approach speed U_a,max. The target is a point that moves along the line from ``t0_s`` (its velocity fed
+    forward), never more than ``leash_m`` ahead of the vehicle's own progress along it (into a strong wind the
+    vehicle is slower than the point), and that slows to a stop at the end braking at ``brake_mps2`` (its
+    deceleration fed forward too), so the vehicle arrives there at guidance's usual gain instead of overshooting;
+    the height is ``down_m`` from the start (the climb goes with the first metres)."""
+
+    name = "transit"
+
+    def __init__(
+        self,
+        name: str,
+        start_ne_m: tuple[float, float],
+        to_ne_m: tuple[float, float],
+        down_m: float,
+        speed_mps: float,
+        brake_mps2: float,
+        t0_s: float,
+        leash_m: float = 3.0,
+    ) -> None:
+        self.name, self.to_ne_m, self.down_m = name, to_ne_m, down_m
+        self.speed_mps, self.brake_mps2, self.leash_m = speed_mps, brake_mps2, leash_m
+        self._start = start_ne_m
+        self.length_m = math.hypot(to_ne_m[0] - start_ne_m[0], to_ne_m[1] - start_ne_m[1])
+        self._u = (
+            (0.0, 0.0)
+            if self.length_m < 1e-9
+            else ((to_ne_m[0] - start_ne_m[0]) / self.length_m, (to_ne_m[1] - start_ne_m[1]) / self.length_m)
+        )
+        self._s_m = 0.0  # the point's progress along the line
+        self._t_s = t0_s
+        self._vehicle_s_m = 0.0  # the vehicle's progress along the line (its newest sample, projected)
+
+    def target_at(self, t_s: float) -> TargetState:
+        dt_s = max(0.0, t_s - self._t_s)
+        self._t_s = t_s
+        to_go_m = self.length_m - self._s_m
+        v_mps = min(self.speed_mps, math.sqrt(2.0 * self.brake_mps2 * to_go_m))  # v² = 2 a d: stop at the end
+        self._s_m = min(self.length_m, self._s_m + v_mps * dt_s, max(self._s_m, self._vehicle_s_m + self.leash_m))
+        if self._s_m >= self.length_m:
+            v_mps = 0.0
+        braking = 0.0 < v_mps < self.speed_mps
+        (un, ue), a_mps2 = self._u, (-self.brake_mps2 if braking else 0.0)
+        n, e = self._start[0] + un * self._s_m, self._start[1] + ue * self._s_m
+        return TargetState(t_s, (n, e, self.down_m), (un * v_mps, ue * v_mps, 0.0), (un * a_mps2, ue * a_mps2, 0.0))
+
+    def observe(self, sample: PositionVelocityNed) -> None:
+        (un, ue), p = self._u, sample.pos_ned_m
+        self._vehicle_s_m = (p[0] - self._start[0]) * un + (p[1] - self._start[1]) * ue
 
 
 class SearchPattern:
