@@ -151,13 +151,27 @@ async def mark_search_datum(io: MissionIO) -> None:
 
 async def goto_search(io: MissionIO) -> None:
     """Fly to the search centre, drifting with the water since the mission started, at the search height (above
-    home)."""
+    home), at the transit speed (``Transit``), slowing to the search speed for the search."""
     m, p = _pickup(io), io.params
     if m.datum_t_s is None:  # resumed past TAKEOFF without a datum: from now
         m.set_search_datum(p.search_start_ne_m, io.now_s(), p.search_drift_ne_mps)
     assert m.datum_t_s is not None
-    target = DriftingPoint("search_start", m.search_centre_ne_m, -p.search_altitude_m, m.datum_t_s,
-                           m.search_drift_ne_mps)  # fmt: skip
+    pv, now_s = io.boundary.telemetry().pos_vel, io.now_s()
+    target: Transit | DriftingPoint = (
+        DriftingPoint("search_start", m.search_centre_ne_m, -p.search_altitude_m, m.datum_t_s, m.search_drift_ne_mps)
+        if pv is None
+        else Transit(
+            "search_start",
+            (pv.pos_ned_m[0], pv.pos_ned_m[1]),
+            m.search_centre_at(now_s),
+            -p.search_altitude_m,
+            p.transit_speed_mps,
+            p.transit_brake_mps2,
+            now_s,
+            drift_ne_mps=m.search_drift_ne_mps,
+            end_speed_mps=p.search_speed_mps,
+        )
+    )
     io.setpoints.engage(target)
 
 
@@ -349,8 +363,8 @@ async def return_home(io: MissionIO) -> None:
             (pv.pos_ned_m[0], pv.pos_ned_m[1]),
             (home[0], home[1]),
             down_m,
-            p.return_speed_mps,
-            p.return_brake_mps2,
+            p.transit_speed_mps,
+            p.transit_brake_mps2,
             io.now_s(),
         )
     )

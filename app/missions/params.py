@@ -195,13 +195,17 @@ class MissionParams(BaseModel):
     )
     lift_altitude_m: float = Field(5.0, ge=1.0, le=60.0, description="climb to this above home after the grab, m")
     return_altitude_m: float = Field(10.0, ge=2.0, le=60.0, description="fly home at this height above home, m")
-    return_speed_mps: float = Field(
+    transit_speed_mps: float = Field(
         5.0,
         ge=0.5,
         le=15.0,
-        description="fly home at up to this speed (PX4's MPC_XY_CRUISE; the envelope's horizontal limit still caps "
-        "it), m/s",
+        description="fly to the search area and home at up to this speed (PX4's MPC_XY_CRUISE; the envelope's "
+        "horizontal limit still caps it), m/s",
     )
-    return_brake_mps2: float = Field(
-        1.0, gt=0.0, le=5.0, description="… and slow down to stop over home at this deceleration, m/s²"
+    transit_brake_mps2: float = Field(
+        1.0,
+        gt=0.0,
+        le=5.0,
+        description="… slowing down at this deceleration for the end of the leg (to the search speed, or to stop "
+        "over home), m/s²",
     )

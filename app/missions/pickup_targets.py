@@ -60,14 +60,22 @@ class DriftingPoint:
         pass
 
 
+CRAWL_MPS = 0.5  # a ``Transit``'s point never slower than this before its end
+
+
 class Transit:
     """From ``start_ne_m`` straight to ``to_ne_m`` at ``down_m``, at up to ``speed_mps`` — as PX4's and ArduPilot's
     own returns fly at cruise speed (PX4 MPC_XY_CRUISE, 5 m/s by default), where guidance alone would close at
     its approach speed U_a,max. The target is a point that moves along the line from ``t0_s`` (its velocity fed
     forward), never more than ``leash_m`` ahead of the vehicle's own progress along it (into a strong wind the
-    vehicle is slower than the point), and that slows to a stop at the end braking at ``brake_mps2`` (its
-    deceleration fed forward too), so the vehicle arrives there at guidance's usual gain instead of overshooting;
-    the height is ``down_m`` from the start (the climb goes with the first metres)."""
+    vehicle is slower than the point). For the end it slows down at ``brake_mps2`` (the deceleration fed forward
+    too) to ``end_speed_mps``, early by as much as the vehicle is behind it (the lag of the autopilot's velocity
+    loop: braking for the point alone, the vehicle came to the end at 3.6–4 m/s instead of 2), then crawls on at
+    no less than ``CRAWL_MPS`` and stops there: ``end_speed_mps`` 0 to stop over home rather than overshoot it,
+    the search speed where a search goes on from there (stopped first, PX4 then tilted to its limit to take the
+    search up and lost the object it had just seen). The height is ``down_m`` from the start (the climb goes
+    with the first metres). With ``drift_ne_mps`` the whole line drifts from ``t0_s`` on (to a search area that
+    drifts with the water: ``to_ne_m`` is where it is at ``t0_s``), the drift fed forward too."""
 
     name = "transit"
 
@@ -81,8 +89,11 @@ class Transit:
         brake_mps2: float,
         t0_s: float,
         leash_m: float = 3.0,
+        drift_ne_mps: tuple[float, float] = (0.0, 0.0),
+        end_speed_mps: float = 0.0,
     ) -> None:
-        self.name, self.to_ne_m, self.down_m = name, to_ne_m, down_m
+        self.end_speed_mps = min(end_speed_mps, speed_mps)
+        self.name, self.to_ne_m, self.down_m, self.t0_s, self.drift_ne_mps = name, to_ne_m, down_m, t0_s, drift_ne_mps
         self.speed_mps, self.brake_mps2, self.leash_m = speed_mps, brake_mps2, leash_m
         self._start = start_ne_m
         self.length_m = math.hypot(to_ne_m[0] - start_ne_m[0], to_ne_m[1] - start_ne_m[1])
@@ -98,19 +109,32 @@ class Transit:
     def target_at(self, t_s: float) -> TargetState:
         dt_s = max(0.0, t_s - self._t_s)
         self._t_s = t_s
-        to_go_m = self.length_m - self._s_m
-        v_mps = min(self.speed_mps, math.sqrt(2.0 * self.brake_mps2 * to_go_m))  # v² = 2 a d: stop at the end
+        # v² = v_end² + 2 a d: down to the end speed at the end — for the vehicle, which is behind the point by
+        # the lag of its velocity loop, so the point brakes that much earlier (and crawls on to the end)
+        lag_m = min(self.leash_m, max(0.0, self._s_m - self._vehicle_s_m))
+        to_go_m = max(0.0, self.length_m - self._s_m - lag_m)
+        v_mps = min(self.speed_mps, math.sqrt(self.end_speed_mps**2 + 2.0 * self.brake_mps2 * to_go_m))
+        v_mps = max(v_mps, min(self.speed_mps, CRAWL_MPS))
         self._s_m = min(self.length_m, self._s_m + v_mps * dt_s, max(self._s_m, self._vehicle_s_m + self.leash_m))
         if self._s_m >= self.length_m:
             v_mps = 0.0
         braking = 0.0 < v_mps < self.speed_mps
         (un, ue), a_mps2 = self._u, (-self.brake_mps2 if braking else 0.0)
-        n, e = self._start[0] + un * self._s_m, self._start[1] + ue * self._s_m
-        return TargetState(t_s, (n, e, self.down_m), (un * v_mps, ue * v_mps, 0.0), (un * a_mps2, ue * a_mps2, 0.0))
+        dn, de = self._drifted_m(t_s)
+        n, e = self._start[0] + dn + un * self._s_m, self._start[1] + de + ue * self._s_m
+        vn, ve = self.drift_ne_mps
+        return TargetState(
+            t_s, (n, e, self.down_m), (vn + un * v_mps, ve + ue * v_mps, 0.0), (un * a_mps2, ue * a_mps2, 0.0)
+        )
 
     def observe(self, sample: PositionVelocityNed) -> None:
         (un, ue), p = self._u, sample.pos_ned_m
-        self._vehicle_s_m = (p[0] - self._start[0]) * un + (p[1] - self._start[1]) * ue
+        dn, de = self._drifted_m(sample.t_s)
+        self._vehicle_s_m = (p[0] - dn - self._start[0]) * un + (p[1] - de - self._start[1]) * ue
+
+    def _drifted_m(self, t_s: float) -> tuple[float, float]:
+        dt_s = max(0.0, t_s - self.t0_s)
+        return self.drift_ne_mps[0] * dt_s, self.drift_ne_mps[1] * dt_s
 
 
 class SearchPattern:

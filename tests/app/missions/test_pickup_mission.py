@@ -94,9 +94,10 @@ async def test_calm_sea_pickup_goes_through_every_state_and_catches_the_object()
 
 @pytest.mark.looptime(noop_cycles=2)
 @pytest.mark.parametrize("profile", ["px4", "ardupilot"])
-async def test_it_flies_home_at_the_return_speed_and_slows_to_a_stop_over_home(profile):
-    """RETURN flies at the cruise speed (``return_speed_mps``, PX4's MPC_XY_CRUISE) rather than at guidance's
-    approach speed, and brakes to stop over home: seen in the vehicle's truth, not in our log."""
+async def test_it_flies_to_the_search_and_home_at_the_transit_speed_and_stops_over_home(profile):
+    """GOTO_SEARCH and RETURN fly at the cruise speed (``transit_speed_mps``, PX4's MPC_XY_CRUISE) rather than at
+    guidance's approach speed; the search is taken up at the search speed and the return brakes to a stop over
+    home: seen in the vehicle's truth, not in our log."""
     events = EventLog(None)
     states: list[dict] = []
     events.subscribe({"state"}, states.append)
@@ -111,6 +112,12 @@ async def test_it_flies_home_at_the_return_speed_and_slows_to_a_stop_over_home(p
     )
     assert flight.result.outcome == "picked_up"
     spans = {a["to"]: (a["t_s"], b["t_s"]) for a, b in itertools.pairwise(states)}
+    envelope_mps = load_settings().envelope.max_horizontal_speed_mps
+    t0_s, t1_s = spans["GOTO_SEARCH"]
+    out = [math.hypot(v[0], v[1]) for t, _, v in track if t0_s <= t < t1_s]
+    print(f"{profile}: to the search in {t1_s - t0_s:.1f} s, top {max(out):.2f} m/s, there at {out[-1]:.2f} m/s")
+    assert 0.9 * p.transit_speed_mps < max(out) < envelope_mps + 0.3
+    assert abs(out[-1] - p.search_speed_mps) < 1.0  # taking the search up at its speed
     t0_s, t1_s = spans["RETURN"]
     back = [(t, pos, math.hypot(v[0], v[1])) for t, pos, v in track if t0_s <= t < t1_s]
     from_m = math.hypot(back[0][1][0], back[0][1][1])
@@ -121,9 +128,9 @@ async def test_it_flies_home_at_the_return_speed_and_slows_to_a_stop_over_home(p
         f"over home at {back[-1][2]:.2f} m/s, landed {math.hypot(landed[0], landed[1]):.2f} m from home"
     )
     assert from_m > 50.0
-    assert 0.9 * p.return_speed_mps < top_mps < load_settings().envelope.max_horizontal_speed_mps + 0.3
+    assert 0.9 * p.transit_speed_mps < top_mps < envelope_mps + 0.3
     # the climb to the return altitude and the braking take a few seconds; at 2 m/s it took from_m / 2 and more
-    assert t1_s - t0_s < from_m / p.return_speed_mps + 8.0
+    assert t1_s - t0_s < from_m / p.transit_speed_mps + 8.0
     # over home (within at_point_m) it is no faster than guidance closing on a fixed point from there (1.9 m/s)
     g = load_settings().guidance
     closing_mps = approach_speed_mps(

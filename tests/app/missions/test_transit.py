@@ -67,3 +67,22 @@ def test_already_home_it_holds_there():
     transit = Transit("home", (0.0, 0.0), (0.0, 0.0), -10.0, speed_mps=5.0, brake_mps2=1.0, t0_s=0.0)
     out = list(fly(transit, lambda t_s: (0.0, 0.0), 1.0))
     assert all(r[1:4] == (0.0, 0.0, 0.0) for r in out)
+
+
+def test_to_a_search_that_goes_on_it_slows_only_to_the_search_speed_and_drifts_with_the_water():
+    drift = (0.3, -0.4)  # 0.5 m/s
+    transit = Transit(
+        "search_start", (0.0, 0.0), (40.0, 30.0), -15.0, 5.0, 1.0, t0_s=0.0, drift_ne_mps=drift, end_speed_mps=2.0
+    )
+    here = [(0.0, 0.0)]
+    out = []
+    for row in fly(transit, lambda _t_s: here[-1], 20.0):
+        out.append(row)
+        here.append((row[1], row[2]))
+    arrived = next(k for k, r in enumerate(out) if r[3] < 0.6)  # only the drift left
+    # up to the end the point's speed over the water stays at or above the search speed (2 m/s; with the 0.5 m/s
+    # drift, which runs against the line's north-east, the speed over the ground at least 2 - 0.5)
+    assert min(r[3] for r in out[1:arrived]) > 2.0 - 0.5
+    t_s, n, e, speed, *_ = out[-1]
+    assert math.isclose(n, 40.0 + drift[0] * t_s, abs_tol=1e-6) and math.isclose(e, 30.0 + drift[1] * t_s, abs_tol=1e-6)
+    assert math.isclose(speed, 0.5, abs_tol=1e-9)  # arrived: it moves with the water, where the search starts
