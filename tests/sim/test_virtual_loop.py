@@ -102,12 +102,13 @@ def test_a_callback_from_another_thread_runs_at_a_later_iteration():
 
 
 def test_a_pickup_run_is_the_same_on_looptime(monkeypatch):
-    """One whole evaluation run (PX4, buoy, sea state 3: 145 s of mission), on this loop and on looptime."""
+    """One whole evaluation run (PX4, buoy, sea state 3: 81 s of mission; 145 s before the transit legs flew at
+    5 m/s), on this loop and on looptime."""
     scenario = sample_scenario(1, 1, 3)
     virtual = run_pickup(scenario, "seapick", 1)
     monkeypatch.setattr("sim.evaluate_pickup.VirtualTimeLoop", lambda: looptime.new_event_loop(noop_cycles=0))
     reference = run_pickup(scenario, "seapick", 1)
     for r in (virtual, reference):
         r.pop("wall_s")
-    assert virtual["outcome"] == "picked_up" and virtual["mission_s"] > 100.0
+    assert virtual["outcome"] == "picked_up" and virtual["mission_s"] > 60.0  # a whole mission, home and landed
     assert json.dumps(virtual, sort_keys=True) == json.dumps(reference, sort_keys=True)
