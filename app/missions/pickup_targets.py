@@ -1,6 +1,7 @@
 """Where guidance takes the vehicle in the pickup mission: target sources for the setpoint loop.
 
-- ``Transit``: straight to a point at a cruise speed (the return home), slowing to a stop there.
+- ``Transit``: straight to a point at a cruise speed (to the search area, slowing to the search speed; home,
+  braking to a stop there).
 - ``SearchPattern``: an expanding square around a centre at a fixed height above home; the legs are one
   camera footprint apart (less the overlap), the target point moves along them at the search speed (with its
   velocity as feed-forward), and the pattern ends at ``max_radius_m`` (the state's timeout bounds the time).
