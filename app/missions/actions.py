@@ -224,6 +224,7 @@ async def start_descend(io: MissionIO) -> None:
         _lean_yaw(io),
         p.precise_max_drift_mps,
         p.touchdown_height_m,
+        math.inf if p.final_start_max_rise_mps is None else p.final_start_max_rise_mps,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

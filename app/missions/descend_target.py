@@ -66,8 +66,10 @@ class DescendTarget(ObjectTarget):
         lean_yaw_min_tilt_rad: float | None = None,
         precise_max_drift_mps: float = math.inf,
         touchdown_height_m: float | None = None,
+        final_start_max_rise_mps: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad)
+        self.final_start_max_rise_mps = final_start_max_rise_mps
         self.precise_max_drift_mps = precise_max_drift_mps
         self.touchdown_height_m = touchdown_height_m
         self.speed_mps = speed_mps
@@ -128,7 +130,8 @@ class DescendTarget(ObjectTarget):
                 self.plunging = False
                 self.go_arounds += 1
                 self.model.final_descent_given_up = True
-            elif not self.plunging and over_it and seeing:  # (a stale estimate starts no final descent)
+            elif not self.plunging and over_it and seeing and self._water_not_rising(t_s):
+                # (a stale estimate starts no final descent)
                 self.plunging, self._committed = True, False
                 self.model.final_descent_given_up = False
             if self.plunging:
@@ -164,6 +167,14 @@ class DescendTarget(ObjectTarget):
         if over_m is None:
             return True
         return snap.fix_age_s + max(0.0, over_m - self.touchdown_height_m) / self.speed_mps <= self.fresh_s
+
+    def _water_not_rising(self, t_s: float) -> bool:
+        """The water under the vehicle rises no faster than ``final_start_max_rise_mps`` (or the radar cannot
+        tell): going down behind falling water, the vehicle meets it as it rises again through its mean, where
+        the object's orbit moves it least; going down as a crest rises, it met the crest high, where the object
+        moves fastest, and the camera had lost it there."""
+        rise = self.model.sea_level.rise_rate_mps(t_s)
+        return rise is None or rise <= self.final_start_max_rise_mps
 
     def _drift_mps(self, t_s: float) -> float:
         """How fast the object drifts (the filter's mean drift, without the waves), m/s; inf when unknown."""

@@ -116,6 +116,13 @@ class MissionParams(BaseModel):
         "moving with it (final_max_speed_mps), and only if it reaches touchdown_height_m at descend_speed_mps "
         "before the fix is older than fix_fresh_s, else climb back to the final height; unset: no such check, s",
     )
+    final_start_max_rise_mps: float | None = Field(
+        None,
+        ge=-5.0,
+        le=5.0,
+        description="start the final descent only while the water under the vehicle (radar) rises no faster than "
+        "this (0: only while it falls); unset: whatever the water does, m/s",
+    )
     precise_max_drift_mps: float = Field(
         0.6,
         ge=0.0,

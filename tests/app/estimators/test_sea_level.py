@@ -65,3 +65,27 @@ def test_the_crest_is_the_highest_rise_above_the_level_within_the_window():
     for t_s in np.arange(120.0, 200.0, 1.0 / 15.0):
         level.update(float(t_s), 2.0 - 0.1 * math.sin(1.2 * t_s))
     assert 0.08 <= level.crest_m() <= 0.2
+
+
+def test_how_fast_the_water_rises_is_the_swell_s_slope_now_and_unknown_after_a_gap():
+    level = MeanSeaLevel()  # the slope over RATE_WINDOW_S, 0.4 s
+    a_m, w = 0.5, 1.2
+    rng = np.random.default_rng(3)
+    errors = []
+    for t_s in np.arange(0.0, 30.0, 0.1):  # the radar at 10 Hz, 2 cm noise; down positive: a crest is −a
+        level.update(float(t_s), 3.0 - a_m * math.sin(w * t_s) + float(rng.normal(0.0, 0.02)))
+        rate = level.rise_rate_mps(float(t_s))
+        if t_s >= 0.3:
+            assert rate is not None
+            # the slope of the last 0.4 s: the true rise rate 0.2 s ago, within the noise's share (a slope over
+            # 5 samples 0.1 s apart with 2 cm noise: σ = 0.02/√0.1 ≈ 0.063 m/s)
+            true_mps = a_m * w * math.cos(w * (t_s - 0.2))
+            errors.append(rate - true_mps)
+            if abs(true_mps) > 0.3:  # a crest rising, or falling away: told apart every time
+                assert (rate > 0.0) == (true_mps > 0.0)
+    rms = float(np.sqrt(np.mean(np.square(errors))))
+    print(f"rise rate error: rms {rms:.3f}, max {np.max(np.abs(errors)):.3f} m/s")
+    assert rms < 0.09 and np.max(np.abs(errors)) < 0.25
+    assert level.rise_rate_mps(30.5) is None  # nothing in the last 0.4 s: the radar reads nothing
+    level.update(33.0, 3.0)  # a gap longer than max_gap_s starts over
+    assert level.rise_rate_mps(33.0) is None

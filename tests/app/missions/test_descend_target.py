@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from app.estimators.sea_level import MeanSeaLevel
@@ -288,3 +289,39 @@ def test_it_asks_for_precision_only_over_an_object_drifting_slower_than_the_limi
     t_s = fly(target, scene, 100.0, 1.0)
     state = target.target_at(t_s + DT)
     assert state is not None and state.precise is precise and target.height_m < 4.0
+
+
+@pytest.mark.parametrize("max_rise_mps", [0.0, None])
+def test_the_final_part_starts_only_while_the_water_under_it_falls_when_asked(max_rise_mps):
+    """Right over the object at the final height, over a swell the radar reads at 10 Hz: with the limit the final
+    descent starts only while the water falls (behind a crest); without it, at once, whatever the water does."""
+    scene = Scene(crest_m=0.5)
+    target = descend(scene, **({} if max_rise_mps is None else {"final_start_max_rise_mps": max_rise_mps}))
+    a_m, w = 0.5, 1.2
+    rng = np.random.default_rng(5)
+
+    def water_up_m(t: float) -> float:
+        return a_m * math.sin(w * t)
+
+    starts, t_s, radar_next_s = [], 100.0, 100.0
+    for _ in range(round(40.0 / DT)):
+        t_s += DT
+        if t_s >= radar_next_s:  # the radar's sample of the surface under the vehicle (down), 2 cm noise
+            scene.sea_level.update(t_s, -water_up_m(t_s) + float(rng.normal(0.0, 0.02)))
+            radar_next_s += 0.1
+        was = target.plunging
+        state = target.target_at(t_s)
+        assert state is not None
+        if target.plunging and not was:
+            starts.append(t_s)
+            target.plunging = False  # back to the final height: the next start is judged again
+        target.height_m = max(target.height_m, target.final_height_now_m())
+        scene.vehicle_height_m = target.height_m
+    rises = [a_m * w * math.cos(w * t) for t in starts]
+    print(f"{len(starts)} starts; water rising at them: max {max(rises):+.2f} m/s (swell ±{a_m * w:.2f})")
+    if max_rise_mps is None:
+        assert len(starts) > 100 and max(rises) > 0.5  # every tick again, rising or not
+    else:
+        # the slope of the last 0.4 s lags the swell by 0.2 s and carries ~0.06 m/s of the radar's noise
+        assert len(starts) > 100 and max(rises) < a_m * w * math.sin(w * 0.2) + 0.2
+        assert min(rises) < -0.5  # it does start, behind the crests
