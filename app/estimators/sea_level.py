@@ -26,7 +26,6 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-
 RATE_WINDOW_S = 0.4  # rise_rate_mps: the slope over this long (4–5 radar heights at 10 Hz; ±0.06 m/s of 2 cm noise)
 
 
