@@ -43,11 +43,12 @@ test: $(STAMP) mosquitto   ## the whole test suite (unit, simulator, end-to-end 
 eval: $(STAMP)   ## target filters against ground truth, sea states 0–4
 	$(BIN)/python -m sim.evaluate filters
 
-bench: $(STAMP)  ## the benchmarks: perception, triangulation, radar, an evaluation run's cost (figures printed; --json for machines)
+bench: $(STAMP)  ## the benchmarks: perception, triangulation, radar, an evaluation run's cost, orbit tracking (figures printed; --json for machines)
 	$(BIN)/python -m app.bench perception
 	$(BIN)/python -m app.bench triangulation
 	$(BIN)/python -m app.bench radar
 	$(BIN)/python -m sim.bench_runs
+	$(BIN)/python -m sim.bench_orbit
 
 lint: $(STAMP)
 	$(BIN)/ruff check app sim tests

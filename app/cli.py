@@ -25,7 +25,7 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from typing import NoReturn
 
@@ -64,6 +64,30 @@ def int_list(lo: int, hi: int) -> Callable[[str], tuple[int, ...]]:
             raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of integers") from None
         if not all(lo <= v <= hi for v in values):
             raise argparse.ArgumentTypeError(f"{text}: each must be in {lo}..{hi}")
+        return values
+
+    return parse
+
+
+def number_list(lo: float, hi: float, unit: str = "") -> Callable[[str], tuple[float, ...]]:
+    """An argparse type: comma-separated finite numbers, each in ``lo..hi`` (e.g. drift speeds ``0,0.9``)."""
+    one = number(lo, hi, unit)
+
+    def parse(text: str) -> tuple[float, ...]:
+        return tuple(one(v) for v in text.split(","))
+
+    return parse
+
+
+def name_list(names: Collection[str]) -> Callable[[str], tuple[str, ...]]:
+    """An argparse type: distinct comma-separated names, each one of ``names``."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        values = tuple(n.strip() for n in text.split(","))
+        if any(n not in names for n in values) or len(set(values)) != len(values):
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: give distinct names from {', '.join(sorted(names))}, comma-separated"
+            )
         return values
 
     return parse

@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from app.cli import OneLineParser, number, run_cli
+from app.cli import OneLineParser, name_list, number, run_cli
 from sim.evaluate_pickup import Job, Progress, RunInputs, run_jobs
 from sim.evaluate_report import summarise, table, write_index_html, write_report_png
 from sim.pickup_scenarios import CONFIGS, sample_scenarios
@@ -32,14 +32,7 @@ PARTIAL_RESULTS = "results.partial.jsonl"  # results as they come in, removed on
 DASK_ADDRESS = re.compile(r"^(tcp|tls|inproc|ucx)://\S+$")
 
 
-def config_list(text: str) -> tuple[str, ...]:
-    names = tuple(n.strip() for n in text.split(","))
-    unknown = [n for n in names if n not in CONFIGS]
-    if unknown or not names or len(set(names)) != len(names):
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: give distinct names from {', '.join(sorted(CONFIGS))}, comma-separated"
-        )
-    return names
+config_list = name_list(CONFIGS)
 
 
 def dask_address(text: str) -> str:
