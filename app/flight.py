@@ -84,8 +84,8 @@ def build_flight(
         clock,
         events,
         ConstantBearingParams(
-            g.approach_speed_max_mps,
-            g.transient_distance_m,
+            g.approach_speed_max_mps if comp.approach_speed_max_mps is None else comp.approach_speed_max_mps,
+            g.transient_distance_m if comp.transient_distance_m is None else comp.transient_distance_m,
             g.velocity_lead_s if comp.velocity_lead_s is None else comp.velocity_lead_s,
             comp.integral_gain_per_s2,
             g.integral_max_mps,

@@ -86,12 +86,18 @@ class AutopilotCompensation(_Model):
         le=2.0,
         description="τ_lead for this autopilot (its velocity response's lag); unset: guidance.velocity_lead_s, s",
     )
+    approach_speed_max_mps: float | None = Field(
+        None, ge=0.1, le=15.0, description="U_a,max for this autopilot; unset: guidance.approach_speed_max_mps, m/s"
+    )
+    transient_distance_m: float | None = Field(
+        None, ge=0.01, le=20.0, description="Δ_p̃ for this autopilot; unset: guidance.transient_distance_m, m"
+    )
     precise_transient_distance_m: float | None = Field(
         None,
         ge=0.01,
         le=20.0,
         description="Δ_p̃ where the mission follows its target tightly (the pickup going down onto the object: a P "
-        "gain of U_a,max/Δ); unset: guidance.transient_distance_m, m",
+        "gain of U_a,max/Δ); unset: the transient distance, m",
     )
     autopilot_params: dict[ParamName, Annotated[float, Field(allow_inf_nan=False)]] = Field(
         default_factory=dict,
@@ -137,10 +143,15 @@ class GuidanceSettings(_Model):
     )
     ardupilot: AutopilotCompensation = Field(
         default_factory=lambda: AutopilotCompensation(
-            velocity_lead_s=0.2, precise_transient_distance_m=0.3, autopilot_params={"PSC_JERK_XY": 20.0}
+            velocity_lead_s=0.2,
+            approach_speed_max_mps=1.2,
+            transient_distance_m=0.24,
+            precise_transient_distance_m=0.18,
+            autopilot_params={"PSC_JERK_XY": 20.0},
         ),
         description="compensation for ArduPilot (GUIDED tracks a position target of its own: only its lag is led, "
-        "shortened by a higher shaping jerk limit)",
+        "shortened by a higher shaping jerk limit; the approach saturates at 1.2 m/s with the same gain U_a,max/Δ "
+        "as elsewhere: at 2 m/s, a target moving at ~2 m/s drove GUIDED's 2.5 m/s² shaping into a 1 m limit cycle)",
     )
     setpoint_rate_hz: float = Field(50.0, ge=20.0, le=100.0, description="offboard setpoint loop rate, Hz")
     realtime_priority: int = Field(

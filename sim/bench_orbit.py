@@ -25,7 +25,7 @@ from app.flight import fly_mission
 from app.messages import TargetState
 from app.missions.circle import CircleTarget
 from app.missions.table import load_mission
-from app.settings import Settings
+from app.settings import load_settings
 from sim.airframes import SIM_PROFILES
 from sim.inproc import InProcessVehicle
 from sim.virtual_loop import VirtualTimeLoop
@@ -57,7 +57,7 @@ async def _fly(profile: str, radius_m: float, seed: int) -> dict[str, Any]:
     table = load_mission("circle")
     params = {"circle_radius_m": radius_m, "circle_v_reduction_s": PERIOD_S / (2.0 * math.pi), "circle_laps": LAPS}
     table = table.model_copy(update={"params": table.params.model_copy(update=params)})
-    flight = await fly_mission(vehicle, table, Settings(), LoopClock(), EventLog(None))
+    flight = await fly_mission(vehicle, table, load_settings(), LoopClock(), EventLog(None))
     return flight.figures
 
 

@@ -24,10 +24,22 @@ def test_ardupilot_follows_a_sea_state_3_orbit_drifting_at_0_9_mps():
     assert r["p95_m"] <= 0.06
 
 
-@pytest.mark.xfail(strict=True, reason="known: ArduCopter's 2.5 m/s² shaping limit and seapick's guidance fall into "
-                   "a ~1 m limit cycle once the target moves at ~2 m/s (README, Evaluating)")  # fmt: skip
-def test_ardupilot_follows_a_fast_orbit_drifting_at_0_9_mps():
-    r = fly_orbit("ardupilot", 0.79, 0.9, precise=False)  # 1.1 m/s around, 2.0 m/s at the most
+@pytest.mark.parametrize("precise", [False, True])
+def test_ardupilot_follows_a_fast_orbit_drifting_at_0_9_mps_without_a_limit_cycle(precise):
+    """1.1 m/s around, 2.0 m/s at the most: with U_a,max 2 m/s (Δ 0.4, precise 0.3) GUIDED's 2.5 m/s² shaping and
+    the position loop fell into a ~1 m limit cycle here (p95 1.30 m, precise 1.33); saturating at 1.2 m/s with the
+    same gain they do not."""
+    r = fly_orbit("ardupilot", 0.79, 0.9, precise=precise)
+    print(r)
+    assert r["p95_m"] <= 0.08
+
+
+KNOWN = "a 1.54 m/s orbit drifting at 0.9 m/s still drives GUIDED's shaping and the loop into a ~1 m limit cycle"
+
+
+@pytest.mark.xfail(strict=True, reason=KNOWN)
+def test_ardupilot_follows_a_faster_orbit_drifting_at_0_9_mps():
+    r = fly_orbit("ardupilot", 1.1, 0.9, precise=False)
     print(r)
     assert r["p95_m"] <= 0.10
 
