@@ -78,3 +78,33 @@ def test_cli_json_has_the_promised_keys():
         assert key in r
     assert r["ratio_1s"] == pytest.approx(r["cv_p95_1s_m"] / r["wave_p95_1s_m"], rel=1e-2)
     assert math.isfinite(r["ratio_1s"]) and r["ratio_1s"] > 0.9  # glassy sea: the wave filter is no worse
+
+
+def test_cli_asks_about_the_descents_blind_half_second():
+    # precise fixes from 1.2 m right over the object, then the horizons the camera is blind for low down
+    out = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", "filters", "--sea-state", "3", "--duration-s", "90",
+         "--tune-duration-s", "30", "--fix-height-m", "1.2", "--offset-std-m", "0.1", "--horizons-s", "0.7,0,0.3",
+         "--json"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300, check=True,
+    )  # fmt: skip
+    doc = json.loads(out.stdout)
+    assert doc["horizons_s"] == [0.0, 0.3, 0.7] and doc["fix_height_m"] == 1.2 and doc["offset_std_m"] == 0.1
+    r = doc["sea_states"]["3"]
+    assert "wave_p95_1s_m" not in r and "ratio_2s" not in r
+    # the object's wave motion is not wholly predictable: the error grows with the time since the last fix
+    assert r["wave_p50_0s_m"] < r["wave_p50_0p3s_m"] < r["wave_p50_0p7s_m"]
+    assert r["cv_p50_0p7s_m"] > r["wave_p50_0p7s_m"]
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "says"),
+    [("--horizons-s", "0.5,x", "--horizons-s"), ("--horizons-s", "-1", "--horizons-s"), ("--fix-height-m", "0", "0.5")],
+)
+def test_cli_bad_filter_study_options_get_one_line_and_exit_2(option, value, says):
+    out = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", "filters", "--sea-state", "0", option, value],
+        cwd=ROOT, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert out.returncode == 2 and out.stdout == ""
+    assert says in out.stderr and len(out.stderr.strip().splitlines()) == 1
