@@ -220,6 +220,7 @@ def mission_params(sc: dict[str, Any], cfg: EvalConfig) -> dict[str, Any]:
         "target_filter": cfg.target_filter,
         "innovation_gate": cfg.innovation_gate,
         "fix_height_from_size": cfg.height_from_size,
+        "wave_oscillators": cfg.wave_oscillators,
         "sea_state": sc["sea_state"],
         "search_start_ne_m": start_ne_m,
     }

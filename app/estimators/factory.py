@@ -11,21 +11,26 @@ from typing import Literal, Protocol
 from app.estimators.cv_filter import ConstantVelocityFilter
 from app.estimators.sea_state import SEA_STATES
 from app.estimators.target_filter import LinearTargetFilter
-from app.estimators.wave_filter import WaveFilter
+from app.estimators.wave_filter import OSCILLATOR_BANKS, WaveFilter
 
 TargetFilterKind = Literal["constant_velocity", "wave"]
+WaveOscillators = Literal["standard", "wide"]  # ``OSCILLATOR_BANKS``
 
 
 class TargetFilterChoice(Protocol):
     """Which motion model to run: for the wave filter the expected WMO sea state (code 0–5), for the
-    constant-velocity filter its process noise (the thesis set Q from configuration parameters); whether the wave
-    filter reads the sea's elevation (its noise, 0: not); and whether the innovation gate rejects outliers."""
+    constant-velocity filter its process noise (the thesis set Q from configuration parameters); the wave filter's
+    bank of oscillators and whether it reads the sea's elevation (its noise, 0: not); and whether the innovation
+    gate rejects outliers."""
 
     @property
     def target_filter(self) -> TargetFilterKind: ...
 
     @property
     def sea_state(self) -> int: ...
+
+    @property
+    def wave_oscillators(self) -> WaveOscillators: ...
 
     @property
     def wave_elevation_std_m(self) -> float: ...
@@ -46,4 +51,10 @@ def make_target_filter(choice: TargetFilterChoice) -> LinearTargetFilter:
         return ConstantVelocityFilter(choice.cv_q_pos_m2ps, choice.cv_q_vel_m2ps3, innovation_gate=gate)
     sea = SEA_STATES[choice.sea_state]
     elevation_std_m = choice.wave_elevation_std_m if choice.wave_elevation_std_m > 0.0 else None
-    return WaveFilter(sea.hs_m, sea.tp_s, innovation_gate=choice.innovation_gate, elevation_std_m=elevation_std_m)
+    return WaveFilter(
+        sea.hs_m,
+        sea.tp_s,
+        OSCILLATOR_BANKS[choice.wave_oscillators],
+        innovation_gate=choice.innovation_gate,
+        elevation_std_m=elevation_std_m,
+    )

@@ -38,6 +38,11 @@ class MissionParams(BaseModel):
         "wave", description="object motion model: the thesis's constant velocity, or current + waves"
     )
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
+    wave_oscillators: Literal["standard", "wide"] = Field(
+        "standard",
+        description="wave filter: its oscillators at 0.7-2.3 times the peak frequency (standard), or on to 3.4 "
+        "(wide: two more for the short waves; not the default yet, README)",
+    )
     wave_elevation_std_m: float = Field(
         0.0,
         ge=0.0,

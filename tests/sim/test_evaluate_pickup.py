@@ -297,6 +297,16 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
         for name, params in [("thesis", thesis), ("seapick", seapick), ("seapick-size", sized), ("seapick-lean", lean)]
     }
     assert checks == {"thesis": False, "seapick": False, "seapick-size": True, "seapick-lean": False}
+    # seapick-wide's wave filter has two oscillators more, for the short waves (at 2.8 and 3.4·ω_p); a glassy sea
+    # has none
+    wide = make_target_filter(base.model_copy(update=mission_params(sc, CONFIGS["seapick-wide"])))
+    assert isinstance(wide, WaveFilter) and wide.innovation_gate
+    if sea_state == 0:
+        assert len(wide.omegas) == len(wave.omegas) == 0
+    else:
+        assert len(wide.omegas) == len(wave.omegas) + 2 == 10
+        assert wide.omegas[-1] / wide.omegas[2] == pytest.approx(3.4)
+        assert wave.omegas[-1] / wave.omegas[2] == pytest.approx(2.3)
 
 
 def test_a_run_flies_the_same_with_its_report_as_without(tmp_path):

@@ -140,3 +140,9 @@ def test_a_request_to_an_unknown_or_grounded_state_is_refused(tmp_path):
 def test_only_the_manual_and_the_hold_state_resume(tmp_path):
     e = broken_pickup(tmp_path, lambda t: t["states"]["TRACK"].update(resume={"SEARCH": "SEARCH"}))
     assert e.path == "states.TRACK.resume" and "hold request's state" in e.message
+
+
+def test_a_choice_param_names_its_path_and_the_choices(tmp_path):
+    e = broken(tmp_path, lambda t: t["params"].update(wave_oscillators="huge"))
+    assert e.path == "params.wave_oscillators"
+    assert "huge" in e.message and "'standard'" in e.message and "'wide'" in e.message
