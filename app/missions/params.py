@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from app.estimators.factory import TargetFilterKind, WaveOscillators  # (the factory builds what these choose)
 
 Pair = tuple[float, float]
 Drift = Annotated[float, Field(ge=-3.0, le=3.0)]  # a drift component, m/s
@@ -34,11 +36,11 @@ class MissionParams(BaseModel):
     setpoint_failures_abort: int = Field(
         10, ge=1, le=1000, description="this many setpoints in a row failing to go out → setpoints_failing, count"
     )
-    target_filter: Literal["constant_velocity", "wave"] = Field(
+    target_filter: TargetFilterKind = Field(
         "wave", description="object motion model: the thesis's constant velocity, or current + waves"
     )
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
-    wave_oscillators: Literal["standard", "wide"] = Field(
+    wave_oscillators: WaveOscillators = Field(
         "standard",
         description="wave filter: its oscillators at 0.7-2.3 times the peak frequency (standard), or on to 3.4 "
         "(wide: two more for the short waves; not the default yet, README)",
