@@ -1,11 +1,13 @@
 # The README's commands. Each target installs what it needs into .venv first.
-PY ?= python3
+# Debian's own CPython 3.11 when it is there: built with PGO and LTO, it runs the simulator ~7 % faster than a plain
+# build such as pyenv's (the same results, bit for bit); otherwise whatever python3 is on the PATH.
+PY ?= $(firstword $(wildcard /usr/bin/python3.11) python3)
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 RUN_DIR ?= runs/demo
 
-.PHONY: setup demo circle test lint eval bench clean mosquitto
+.PHONY: setup native demo circle test lint eval bench clean mosquitto
 
 $(STAMP): pyproject.toml
 	@# A bare Debian has python3 but may lack venv/ensurepip: install it with apt-get (as root or via sudo).
@@ -18,6 +20,9 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
+native: $(STAMP)  ## the simulator's hot modules compiled with mypyc (when their sources changed): same results, less CPU
+	$(BIN)/python -m sim.native_build
+
 mosquitto:  ## the MQTT broker, its clients (mosquitto_pub/sub) and openssl (the test CA) for the ground-station tests
 	@# Debian puts the broker in /usr/sbin, off a normal user's PATH: look there too. Same apt-get/sudo as above.
 	@missing=""; \
@@ -29,21 +34,21 @@ mosquitto:  ## the MQTT broker, its clients (mosquitto_pub/sub) and openssl (the
 	    $$SUDO apt-get update -q && $$SUDO apt-get install -y -q $$missing; \
 	  fi
 
-demo: $(STAMP)   ## fly the default simulated mission (the pickup, sea state 2) and print its summary
+demo: $(STAMP) native   ## fly the default simulated mission (the pickup, sea state 2) and print its summary
 	$(BIN)/python -m app.main --mission pickup.yaml --sim --seed 1 --run-dir $(RUN_DIR); \
 	  status=$$?; cat $(RUN_DIR)/summary.json; echo "report: $(RUN_DIR)/report.png"; exit $$status
 
-circle: $(STAMP)  ## the circle-tracking mission (thesis §5.2)
+circle: $(STAMP) native  ## the circle-tracking mission (thesis §5.2)
 	$(BIN)/python -m app.main --mission circle.yaml --sim --run-dir runs/circle
 	@cat runs/circle/summary.json
 
-test: $(STAMP) mosquitto   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
+test: $(STAMP) native mosquitto   ## the whole test suite (unit, simulator, end-to-end through the real CLI)
 	$(BIN)/python -m pytest -q
 
-eval: $(STAMP)   ## target filters against ground truth, sea states 0–4
+eval: $(STAMP) native   ## target filters against ground truth, sea states 0–4
 	$(BIN)/python -m sim.evaluate filters
 
-bench: $(STAMP)  ## the benchmarks: perception, triangulation, radar, an evaluation run's cost, orbit tracking (figures printed; --json for machines)
+bench: $(STAMP) native  ## the benchmarks: perception, triangulation, radar, an evaluation run's cost, orbit tracking (figures printed; --json for machines)
 	$(BIN)/python -m app.bench perception
 	$(BIN)/python -m app.bench triangulation
 	$(BIN)/python -m app.bench radar
@@ -55,4 +60,4 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 clean:
-	rm -rf runs .pytest_cache .mypy_cache .ruff_cache
+	rm -rf runs build .pytest_cache .mypy_cache .ruff_cache

@@ -26,6 +26,7 @@ from typing import Any
 from app.cli import OneLineParser, name_list, number, run_cli
 from sim.evaluate_pickup import Job, Progress, RunInputs, run_jobs
 from sim.evaluate_report import summarise, table, write_index_html, write_report_png
+from sim.native import active as native_active
 from sim.pickup_scenarios import CONFIGS, sample_scenarios
 
 PARTIAL_RESULTS = "results.partial.jsonl"  # results as they come in, removed once results.jsonl is written
@@ -99,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         "wall_s": round(wall_s, 1),
         "jobs": args.jobs,
         "dask": args.dask,
+        "native": native_active(),  # this process's simulator modules compiled (``sim.native``): its workers' too
         "out": str(out),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
