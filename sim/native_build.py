@@ -19,9 +19,9 @@ def build(native_dir: Path = NATIVE_DIR, root: Path = ROOT) -> str:
     if is_fresh(native_dir, root):
         return f"compiled modules up to date in {native_dir}"
     shutil.rmtree(native_dir, ignore_errors=True)
+    sources = manifest(root)  # as they are when compiled: a file edited during the build leaves the build stale
     with tempfile.TemporaryDirectory(prefix="seapick-native-") as tmp:
         script = (
-            "import sys\n"
             "from setuptools import setup\n"
             "from mypyc.build import mypycify\n"
             f"setup(name={GROUP!r}, ext_modules=mypycify({list(MODULES)!r}, group_name={GROUP!r},"
@@ -37,7 +37,7 @@ def build(native_dir: Path = NATIVE_DIR, root: Path = ROOT) -> str:
             raise RuntimeError(f"mypyc failed (exit {proc.returncode}):\n{tail}")
         native_dir.parent.mkdir(parents=True, exist_ok=True)
         shutil.copytree(Path(tmp) / "lib", native_dir)
-    (native_dir / "manifest.json").write_text(json.dumps(manifest(root), indent=1) + "\n")
+    (native_dir / "manifest.json").write_text(json.dumps(sources, indent=1) + "\n")
     return f"compiled {len(MODULES)} modules into {native_dir}"
 
 
