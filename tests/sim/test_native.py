@@ -66,3 +66,17 @@ def test_seapick_native_0_keeps_a_fresh_build_off(tmp_path: Path, monkeypatch: p
     assert native.activate(path, tmp_path) is False and path == ["src"]
     monkeypatch.setenv("SEAPICK_NATIVE", "1")
     assert native.activate(path, tmp_path) is True and path == [str(tmp_path / "sim"), "src"]
+
+
+def test_a_failed_build_says_why_and_leaves_no_build(tmp_path: Path) -> None:
+    from sim import native_build
+
+    root = tmp_path / "src"
+    for m in native.MODULES:
+        (root / m).parent.mkdir(parents=True, exist_ok=True)
+        (root / m).write_bytes((native.ROOT / m).read_bytes())
+    (root / "sim/wind.py").write_text("def broken(:\n")  # a syntax error: mypyc stops at it
+    out = tmp_path / "native"
+    with pytest.raises(RuntimeError, match=r"mypyc failed \(exit [1-9]"):
+        native_build.build(out, root)
+    assert not out.exists() and not native.is_fresh(out, root)
