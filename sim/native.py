@@ -4,7 +4,7 @@ An evaluation's cost is the simulator's Python (issue 13: 400 runs on 2 cores in
 sim.native_build`` (``make native``, which ``make demo``/``test``/``eval`` run first) compiles ``MODULES`` with mypyc —
 as mypy itself ships — into ``build/native/`` (git-ignored), with a manifest of what it compiled from. At import,
 ``sim/__init__.py`` puts that directory ahead of the sources on ``sim``'s path only while the manifest matches the
-sources byte for byte (and the interpreter and mypy): a module edited since the build runs as plain Python, never a
+sources byte for byte (and the interpreter): a module edited since the build runs as plain Python, never a
 stale compiled copy. ``SEAPICK_NATIVE=0`` runs everything as plain Python.
 
 Compiled or not, a run flies the same, bit for bit (IEEE doubles and the C library's ``math`` either way): a test
@@ -45,28 +45,23 @@ MODULES = (
 
 
 def manifest(root: Path = ROOT) -> dict[str, object]:
-    """What a build is valid for: the interpreter (its version and build, where it runs from), mypy's version and
-    every compiled source's SHA-256."""
-    mypy_version: str | None
-    try:
-        from mypy.version import __version__ as mypy_version
-    except ImportError:
-        mypy_version = None
+    """What a build is valid for: the interpreter (its version and build, where it runs from) and every compiled
+    source's SHA-256. (Not mypy's version: the build carries mypyc's runtime in its own shared library, and
+    reading that version costs every ``import sim`` ~40 ms.)"""
     return {
         "python": f"{sys.version} {sys.executable}",
-        "mypy": mypy_version,
         "sources": {m: hashlib.sha256((root / m).read_bytes()).hexdigest() for m in MODULES},
     }
 
 
 def is_fresh(native_dir: Path = NATIVE_DIR, root: Path = ROOT) -> bool:
-    """Does ``native_dir`` hold a build of the sources as they are now (for this interpreter and mypy)?"""
+    """Does ``native_dir`` hold a build of the sources as they are now (for this interpreter)?"""
     try:
         built = json.loads((native_dir / "manifest.json").read_text())
     except (OSError, ValueError):
         return False
     try:
-        return bool(built == manifest(root))
+        return isinstance(built, dict) and all(built.get(k) == v for k, v in manifest(root).items())
     except OSError:  # a source gone
         return False
 

@@ -37,7 +37,9 @@ def build(native_dir: Path = NATIVE_DIR, root: Path = ROOT) -> str:
             raise RuntimeError(f"mypyc failed (exit {proc.returncode}):\n{tail}")
         native_dir.parent.mkdir(parents=True, exist_ok=True)
         shutil.copytree(Path(tmp) / "lib", native_dir)
-    (native_dir / "manifest.json").write_text(json.dumps(sources, indent=1) + "\n")
+    from mypy.version import __version__ as mypy_version  # for the record: the build does not depend on it
+
+    (native_dir / "manifest.json").write_text(json.dumps(sources | {"mypy": mypy_version}, indent=1) + "\n")
     return f"compiled {len(MODULES)} modules into {native_dir}"
 
 
