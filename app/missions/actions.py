@@ -225,6 +225,7 @@ async def start_descend(io: MissionIO) -> None:
         p.precise_max_drift_mps,
         p.touchdown_height_m,
         math.inf if p.final_start_max_rise_mps is None else p.final_start_max_rise_mps,
+        math.inf if p.final_blind_pause_s is None else p.final_blind_pause_s,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

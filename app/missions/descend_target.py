@@ -30,7 +30,10 @@ class DescendTarget(ObjectTarget):
     the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start, and only
     if going on at ``speed_mps`` it reaches ``touchdown_height_m`` before its newest fix is older than ``fresh_s``
     (else it would turn back at the bottom, where crests met it off the object) — else it climbs back to the final
-    height while the camera can still see the object. The desired height never leads
+    height while the camera can still see the object. Already after ``blind_pause_s`` without a new fix, a descent
+    that could not go on blind stops going down (holds its desired height): the fixes come back (on down) or the
+    gap passes and it climbs back from higher and slower than it would have — turning back at ``speed_mps``, the
+    rising water met it. The desired height never leads
     the vehicle's own height (over the mean sea) by more than ``max_lead_m``: a vehicle lagging its target
     would otherwise come down at the envelope's full speed; in the final part by no more than
     ``final_max_lead_m`` (0.5 m of lead there asked for 1 m/s down, and an ArduCopter coming down at that,
@@ -67,6 +70,7 @@ class DescendTarget(ObjectTarget):
         precise_max_drift_mps: float = math.inf,
         touchdown_height_m: float | None = None,
         final_start_max_rise_mps: float = math.inf,
+        blind_pause_s: float = math.inf,
     ) -> None:
         super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad)
         self.final_start_max_rise_mps = final_start_max_rise_mps
@@ -83,6 +87,7 @@ class DescendTarget(ObjectTarget):
         self.max_lead_m = max_lead_m
         self.final_max_speed_mps = final_max_speed_mps
         self.blind_gap_s = blind_gap_s
+        self.blind_pause_s = blind_pause_s
         self.final_max_lead_m = min(final_max_lead_m, max_lead_m)
         self.crest_clearance_m = crest_clearance_m
         self.waits = 0  # ticks the final descent waited for the vehicle to come over the object
@@ -134,9 +139,9 @@ class DescendTarget(ObjectTarget):
                 # (a stale estimate starts no final descent)
                 self.plunging, self._committed = True, False
                 self.model.final_descent_given_up = False
-            if self.plunging:
+            if self.plunging and not self._pausing(t_s, snap):
                 self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
-            else:
+            elif not self.plunging:
                 self.waits += 1  # the last part only right over the object: wait at the final height until it is
                 self.height_m = final_m
         elif self._off_the_object(t_s)[0] <= self.final_abort_radius_m:
@@ -155,6 +160,11 @@ class DescendTarget(ObjectTarget):
         # over a fast drift, where its tilt swings took the object out of a leaning vehicle's view (README)
         precise = good and self._drift_mps(t_s) <= self.precise_max_drift_mps
         return self._aim(t_s, self._clear_of_crests(self.height_m, vehicle_m, snap.height_above_sea_m), precise)
+
+    def _pausing(self, t_s: float, snap: Estimates) -> bool:
+        """Not yet committed, ``blind_pause_s`` without a new fix, and not able to go on blind: hold the height."""
+        unseen_s = t_s - self._fix_seen_s
+        return not self._committed and unseen_s > self.blind_pause_s and not self._reaches_the_water_fresh(snap)
 
     def _reaches_the_water_fresh(self, snap: Estimates) -> bool:
         """Would the vehicle, going on down at ``speed_mps``, reach the touchdown height (over the water the radar

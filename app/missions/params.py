@@ -123,6 +123,14 @@ class MissionParams(BaseModel):
         "moving with it (final_max_speed_mps), and only if it reaches touchdown_height_m at descend_speed_mps "
         "before the fix is older than fix_fresh_s, else climb back to the final height; unset: no such check, s",
     )
+    final_blind_pause_s: float | None = Field(
+        None,
+        ge=0.02,
+        le=5.0,
+        description="in the final descent, no new fix for this long (shorter than final_blind_gap_s) and the water "
+        "too far to reach before the fix is stale: stop going down until a fix comes (on down) or the blind gap "
+        "passes (climb back, from higher and slower); unset: no pause, s",
+    )
     final_start_max_rise_mps: float | None = Field(
         None,
         ge=-5.0,

@@ -237,6 +237,41 @@ def test_going_blind_it_goes_on_only_if_it_reaches_the_water_while_its_fix_is_fr
         assert scene.final_descent_given_up and target.height_m == target.final_height_now_m()
 
 
+@pytest.mark.parametrize(("radar_m", "fixes_back"), [(0.6, False), (0.6, True), (0.35, False)])
+def test_going_blind_where_it_cannot_go_on_it_stops_going_down_before_the_gap(radar_m, fixes_back):
+    """0.6 m over the water the descent could not go on blind (its fix would be stale before the touchdown height),
+    so once 0.14 s have passed without a new fix it stops going down: the fixes come back → on down; they do not →
+    at the gap (0.25 s) it climbs back, from where it stopped rather than 0.05 m lower and still coming down at
+    0.5 m/s (the rising water met it there). 0.35 m over the water it would reach the water fresh: no pause."""
+    scene = Scene(crest_m=0.2)
+    target = descend(scene, blind_gap_s=0.25, blind_pause_s=0.14, touchdown_height_m=0.3)
+    t_s = fly(target, scene, 100.0, 7.0)  # over the object with fresh fixes: into the final part
+    assert target.plunging
+    scene.radar_m = radar_m
+    scene.last_fix_t_s = t_s  # the newest fix, seen on the next tick; then none
+    start_m = target.height_m
+    t_s = fly(target, scene, t_s, 0.1)
+    assert target.plunging and target.height_m == pytest.approx(start_m - 0.05)  # 0.1 s at 0.5 m/s
+    t_s = fly(target, scene, t_s, 0.1)  # 0.18 s after the fix was seen
+    paused_m = target.height_m
+    t_s = fly(target, scene, t_s, 0.04)  # 0.22 s: within the gap
+    if radar_m < 0.5:  # it reaches the water while the fix is fresh: on down, and on blind past the gap
+        assert target.plunging and target.height_m == pytest.approx(paused_m - 0.02)
+        fly(target, scene, t_s, 0.1)
+        assert target.plunging and target.blind_go_arounds == 0
+        return
+    assert target.plunging and target.height_m == paused_m  # stopped going down …
+    assert start_m - 0.09 < paused_m < start_m - 0.07  # … 0.14–0.18 s after the fix was seen
+    if fixes_back:
+        scene.last_fix_t_s = None  # the camera sees the object again: on down
+        fly(target, scene, t_s, 0.2)
+        assert target.plunging and target.height_m < paused_m - 0.05 and target.blind_go_arounds == 0
+        return
+    fly(target, scene, t_s, 0.06)  # past the gap: it climbs back from where it stopped
+    assert not target.plunging and target.blind_go_arounds == 1
+    assert target.height_m == target.final_height_now_m() and scene.final_descent_given_up
+
+
 def test_a_crest_rising_under_a_vehicle_waiting_for_the_final_part_lifts_it_and_then_it_comes_back():
     scene = Scene(crest_m=0.7)
     target = descend(scene, crest_clearance_m=0.8)
