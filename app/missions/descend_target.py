@@ -117,6 +117,7 @@ class DescendTarget(ObjectTarget):
         # was tracked moments ago
         good = good and (snap.height_above_sea_m is not None or snap.height_over_mean_sea_m is not None)
         final_m = self.final_height_now_m()
+        before_m, was_going_down = self.height_m, self.plunging and not self._committed
         if not good:  # climb back to (and wait at) the safety height
             self.height_m = max(self.height_m, self.safety_height_m)
             self.plunging = False
@@ -139,15 +140,17 @@ class DescendTarget(ObjectTarget):
                 # (a stale estimate starts no final descent)
                 self.plunging, self._committed = True, False
                 self.model.final_descent_given_up = False
-            if self.plunging and not self._pausing(t_s, snap):
+            if self.plunging:
                 self.height_m = max(0.0, self.height_m - self.speed_mps * dt_s)
-            elif not self.plunging:
+            else:
                 self.waits += 1  # the last part only right over the object: wait at the final height until it is
                 self.height_m = final_m
         elif self._off_the_object(t_s)[0] <= self.final_abort_radius_m:
             self.height_m = max(final_m, self.height_m - self.speed_mps * dt_s)
         else:  # off the object on the way down too: hold the height until guidance has caught up with it
             self.waits += 1
+        if was_going_down and self.height_m < before_m and self._pausing(t_s, snap):
+            self.height_m = before_m  # blind a while, and it could not go on blind: no lower for now
         vehicle_m = snap.height_over_mean_sea_m
         lead_m = self.final_max_lead_m if self.height_m < final_m else self.max_lead_m
         if vehicle_m is not None and self.height_m < vehicle_m - lead_m:
@@ -162,9 +165,11 @@ class DescendTarget(ObjectTarget):
         return self._aim(t_s, self._clear_of_crests(self.height_m, vehicle_m, snap.height_above_sea_m), precise)
 
     def _pausing(self, t_s: float, snap: Estimates) -> bool:
-        """Not yet committed, ``blind_pause_s`` without a new fix, and not able to go on blind: hold the height."""
+        """Going down in the final part, not committed to the blind last part, ``blind_pause_s`` without a new fix,
+        and not able to go on blind (``_reaches_the_water_fresh``): no lower for now."""
         unseen_s = t_s - self._fix_seen_s
-        return not self._committed and unseen_s > self.blind_pause_s and not self._reaches_the_water_fresh(snap)
+        going_down = self.plunging and not self._committed
+        return going_down and unseen_s > self.blind_pause_s and not self._reaches_the_water_fresh(snap)
 
     def _reaches_the_water_fresh(self, snap: Estimates) -> bool:
         """Would the vehicle, going on down at ``speed_mps``, reach the touchdown height (over the water the radar
