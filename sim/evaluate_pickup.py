@@ -10,7 +10,9 @@ result for the same scenario — only ``wall_s`` differs.
 The result's fields: ``run``, ``seed``, ``scenario``, ``config``, ``outcome`` (the mission's — ``picked_up``,
 ``failed``, ``aborted``, ``pilot`` — or ``timeout`` past ``RUN_LIMIT_S`` of mission time, ``error`` if the run
 raised), ``final_state``, ``touchdown_error_m`` (gripper to object, horizontal, from the truth: the grab that
-caught it, else the last grab; None without a grab), ``time_to_pickup_s`` (arming → the grab that caught it),
+caught it, else the last grab; None without a grab), ``grab_height_m`` (how high the vehicle's lowest point was
+over the water under it when the gripper closed on that grab, from the truth: above ``sim.pickup_world.CONTACT_M``
+it had not touched the water), ``time_to_pickup_s`` (arming → the grab that caught it),
 ``retries``, ``grabs``, ``caught`` (the simulator's truth: a grab caught the object),
 ``abort_reason`` (None when picked up: else the transition that gave up — ``STATE→STATE:
 reason`` — or the error), ``envelope_violations`` (setpoints outside the speed envelope or not finite, as the
@@ -118,7 +120,8 @@ def _collector_threshold(gen0: int) -> Iterator[None]:
 
 def _empty(outcome: str, reason: str) -> dict[str, Any]:
     return {
-        "outcome": outcome, "final_state": None, "touchdown_error_m": None, "time_to_pickup_s": None, "retries": 0,
+        "outcome": outcome, "final_state": None, "touchdown_error_m": None, "grab_height_m": None,
+        "time_to_pickup_s": None, "retries": 0,
         "grabs": 0, "abort_reason": reason, "envelope_violations": 0, "safety_violations": [], "caught": False,
         "off_target_touchdowns": 0, "off_target_grabs": 0, "off_target_contacts": 0, "mission_s": 0.0,
         "fixes_rejected": {}, "clutter": {},
@@ -192,6 +195,7 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: 
         "outcome": outcome,
         "final_state": final_state,
         "touchdown_error_m": None if touchdown is None else round(touchdown["error_m"], 4),
+        "grab_height_m": None if touchdown is None else round(touchdown["height_m"], 3),
         "time_to_pickup_s": round(caught[0]["t_s"] - armed_s, 2) if caught and armed_s is not None else None,
         "retries": max(0, len(grabs) - 1),
         "grabs": len(grabs),

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from sim.pickup_world import CONTACT_M
+
 GOALS_M = (0.08, 0.20)  # the issue's long-term and current touchdown p95 goals
 
 
@@ -22,7 +24,8 @@ def _pct(values: Sequence[float], q: float) -> float | None:
 def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict[str, Any]:
     """Per configuration: runs, success rate (picked up by the mission's word *and* the simulator's truth; a
     mission that says picked_up with an empty gripper is a ``false_pickups``), touchdown error p50/p95/max
-    (runs that touched down), time to
+    (runs that touched down), how high over the water the gripper closed on the catches (p50/p95, and how many
+    closed it before the vehicle had touched the water: ``caught_above_water``), time to
     pickup, off-target touchdowns, envelope and safety violations, aborts by reason, speed-up over real time
     (mission time over the runs' own wall time); and ``ratio_p95`` = the first configuration's p95 over the
     second's."""
@@ -35,6 +38,7 @@ def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict
         false_pickups = [r for r in rs if r["outcome"] == "picked_up" and not r.get("caught", True)]
         errors = [r["touchdown_error_m"] for r in rs if r["touchdown_error_m"] is not None]
         times = [r["time_to_pickup_s"] for r in picked if r["time_to_pickup_s"] is not None]
+        grab_heights = [r["grab_height_m"] for r in picked if r.get("grab_height_m") is not None]
         wall_s = sum(r["wall_s"] for r in rs)
         by_sea: dict[str, list[int]] = {}
         for r in rs:
@@ -48,6 +52,9 @@ def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict
             "touchdown_p95_m": _pct(errors, 95),
             "touchdown_max_m": round(max(errors), 4) if errors else None,
             "touchdowns": len(errors),
+            "grab_height_p50_m": _pct(grab_heights, 50),
+            "grab_height_p95_m": _pct(grab_heights, 95),
+            "caught_above_water": sum(1 for h in grab_heights if h > CONTACT_M),
             "time_to_pickup_p50_s": _pct(times, 50),
             "time_to_pickup_p95_s": _pct(times, 95),
             "off_target_touchdowns": sum(r["off_target_touchdowns"] for r in rs),
@@ -93,6 +100,12 @@ def table(summary: dict[str, Any]) -> str:
             f"{name}: outcomes {c['outcomes']}; success by sea state: {by_sea}; "
             f"false pickups (said picked_up, gripper empty): {c['false_pickups']}"
         )
+        if c["grab_height_p50_m"] is not None:
+            rows.append(
+                f"  gripper closed over the water (catches): p50 {_m(c['grab_height_p50_m'])} m, "
+                f"p95 {_m(c['grab_height_p95_m'])} m; before touching it (> {CONTACT_M:g} m): "
+                f"{c['caught_above_water']} of {c['picked_up']}"
+            )
         for reason, n in c["aborts_by_reason"].items():
             rows.append(f"  {n:4d}  {reason}")
     return "\n".join(rows)

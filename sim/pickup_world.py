@@ -10,10 +10,12 @@ their own rates and with their latency, computed from the truth:
   one wholly in the image and at least ``MIN_EDGE_PX`` across is what the detector reports, with its size;
 - radar: the radar's true height above the sea surface under the vehicle (waves included), plus noise.
 
-It also judges the pickup from the truth: where the gripper touched the water relative to the object when
-the gripper closed (``touchdown_error_m``) and whether the object was caught: within ``capture_radius_m``
-and with a gentle touchdown (vertical speed ≤ ``gentle_mps``); ``fail_first_grabs`` makes the first grabs
-miss regardless. A caught object hangs in the gripper: the camera no longer sees it on the sea.
+It also judges the pickup from the truth: where the vehicle was relative to the object when the gripper closed
+(``touchdown_error_m``) and whether the object was caught: within ``capture_radius_m``, with a gentle touchdown
+(vertical speed ≤ ``gentle_mps``) and the vehicle lower than ``GRIP_REACH_M`` over the water under it — it need
+not have touched the water (``height_m`` in the grab's record says how high it was; the evaluation reports
+it); ``fail_first_grabs`` makes the first grabs miss regardless. A caught object hangs in the gripper: the
+camera no longer sees it on the sea.
 """
 
 from __future__ import annotations
@@ -239,6 +241,10 @@ class PickupWorld:
 DECK_RADIUS_M = 5.0  # around home the vehicle stands on the deck (down 0); beyond, on the sea
 CONTACT_M = 0.05  # the vehicle this close to the water under it has touched down on it …
 CONTACT_CLEAR_M = 0.3  # … and a next touchdown needs it this high first
+# a grab catches with the vehicle (its lowest point) lower than this over the water under it: a lenient judge —
+# the gripper closes at once, and in sea state 3 most catches closed it before the vehicle touched the water
+# (README, *Evaluating*: where the gripper closed)
+GRIP_REACH_M = 0.5
 
 
 def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any, sea_down_m: float | None = None) -> float:
@@ -261,7 +267,7 @@ def judge_grab(
     height = -float(obj.sea.surface_elevation_m(t_s, *truth.pos_ned_m[:2])) - truth.pos_ned_m[2]
     speed = abs(float(truth.vel_ned_mps[2]))
     slipped = len(outcome.grabs) < sc.fail_first_grabs
-    caught = err <= sc.capture_radius_m and speed <= sc.gentle_mps and height < 0.5 and not slipped
+    caught = err <= sc.capture_radius_m and speed <= sc.gentle_mps and height < GRIP_REACH_M and not slipped
     grab = {"t_s": t_s, "error_m": err, "height_m": height, "speed_mps": speed, "caught": caught, "slipped": slipped}
     outcome.grabs.append(grab)
     outcome.touchdown_error_m, outcome.touchdown_speed_mps = err, speed

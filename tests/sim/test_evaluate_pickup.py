@@ -25,7 +25,7 @@ from sim.evaluate_report import table
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
 from sim.pickup_scenarios import CONFIGS, CV_TUNED_Q, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
-from sim.pickup_world import PickupScenario, PickupWorld
+from sim.pickup_world import CONTACT_M, GRIP_REACH_M, PickupScenario, PickupWorld
 from sim.wind import WindConfig
 from tests.mcaputil import PICKUP_TOPICS, check_run_mcap
 
@@ -71,6 +71,11 @@ def test_every_result_line_is_well_formed(evaluation):
         assert r["retries"] == max(0, r["grabs"] - 1) and r["off_target_touchdowns"] <= r["grabs"]
         assert isinstance(r["safety_violations"], list) and isinstance(r["fixes_rejected"], dict)
         assert isinstance(r["caught"], bool) and (not r["caught"] or r["grabs"] >= 1)
+        # how high over the water the gripper closed, on the grab touchdown_error_m is from: with it, and a catch
+        # only within the gripper's reach
+        assert (r["grab_height_m"] is None) == (r["touchdown_error_m"] is None)
+        assert r["grab_height_m"] is None or isinstance(r["grab_height_m"], float)
+        assert not r["caught"] or r["grab_height_m"] < GRIP_REACH_M
         assert r["mission_s"] > 30.0 and 0.0 < r["wall_s"] < r["mission_s"]  # virtual time: faster than real
     print([(r["config"], r["outcome"], r["touchdown_error_m"], r["abort_reason"]) for r in results])
     assert any(r["outcome"] == "picked_up" for r in results)
@@ -109,6 +114,9 @@ def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
         assert c["touchdown_p50_m"] == (round(float(np.percentile(errs, 50)), 4) if errs else None)
         assert c["touchdown_p95_m"] == (round(float(np.percentile(errs, 95)), 4) if errs else None)
         assert c["off_target_touchdowns"] == sum(r["off_target_touchdowns"] for r in rs)
+        heights = [r["grab_height_m"] for r in rs if r["outcome"] == "picked_up" and r["caught"]]
+        assert c["grab_height_p50_m"] == (round(float(np.percentile(heights, 50)), 4) if heights else None)
+        assert c["caught_above_water"] == sum(h > CONTACT_M for h in heights)
         assert c["envelope_violations"] == sum(r["envelope_violations"] for r in rs)
         assert c["speedup_vs_real_time"] > 5.0
     a, b = doc["configs"]["thesis"]["touchdown_p95_m"], doc["configs"]["seapick"]["touchdown_p95_m"]
