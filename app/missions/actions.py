@@ -25,6 +25,7 @@ from app.missions.pickup_targets import (
     DriftingPoint,
     ObjectTarget,
     SearchPattern,
+    SinkTarget,
     Transit,
     VerifyTarget,
     expanding_square,
@@ -237,13 +238,44 @@ def _lean_yaw(io: MissionIO) -> float | None:
 
 
 async def grab(io: MissionIO) -> None:
-    """Close the gripper (MAV_CMD_DO_GRIPPER), staying on the water over the object meanwhile (it moves on the
-    waves; without an estimate the loop holds where it is)."""
+    """Come down onto the water over the object (it moves on the waves; without an estimate the loop holds where it
+    is) and close the gripper (MAV_CMD_DO_GRIPPER) once on it (``_on_the_water``), or after
+    ``grab_contact_timeout_s`` regardless (a grab in the air misses: VERIFY sees the object and retries).
+
+    Touchdown is judged at ``touchdown_height_m`` (0.3 m) over the water by the radar or over the *mean* sea (under
+    the radar's first range it sees nothing): a gripper closed there closed in the air, 0.25 m over the water on
+    the median catch at sea state 3, up to 0.5 m (README, *Evaluating*: where the gripper closed)."""
     m = _pickup(io)
+    m.gripper_closed_t_s = None
+    p, now_s = io.params, io.now_s()
+    start_m = m.height_over_mean_sea_m(now_s)
+    start_m = p.touchdown_height_m if start_m is None else start_m
+    sink = SinkTarget(m, io.boundary.telemetry, start_m, p.grab_sink_speed_mps, -p.grab_press_m)
+    io.setpoints.engage(sink, allow_below_min=True)
+    start_s = io.now_s()
+    while True:  # (polled: the telemetry and the loop clock are what it waits on)
+        if io.now_s() - start_s >= io.params.grab_contact_timeout_s or _on_the_water(io, start_s):
+            break
+        await asyncio.sleep(CONTACT_POLL_S)
     pv = io.boundary.telemetry().pos_vel
     m.on_grab((pv.pos_ned_m[0], pv.pos_ned_m[1]) if pv is not None else m.last_estimate_ne_m or (math.nan, math.nan))
-    io.setpoints.engage(ObjectTarget(m, io.boundary.telemetry, 0.0), allow_below_min=True)
     await io.boundary.grip(True)
+    m.gripper_closed_t_s = io.now_s()
+
+
+CONTACT_POLL_S = 0.02  # GRAB looks for the water this often (the setpoint rate)
+CONTACT_SETTLE_S = 0.1  # … and judges the sinking speed only this long after it began (it may enter slow)
+
+
+def _on_the_water(io: MissionIO, since_s: float) -> bool:
+    """The autopilot says landed, or — asked down since ``since_s`` — the vehicle sinks no faster than
+    ``grab_contact_speed_mps``: the water holds it up (the autopilots' land detectors take 0.5 s and more to say
+    so; the object orbits decimetres meanwhile)."""
+    if _landed(io):
+        return True
+    pv = io.boundary.telemetry().pos_vel
+    settled = io.now_s() - since_s >= CONTACT_SETTLE_S
+    return settled and pv is not None and pv.vel_ned_mps[2] <= io.params.grab_contact_speed_mps
 
 
 async def start_verify(io: MissionIO) -> None:
