@@ -325,8 +325,7 @@ class PickupEstimates:
 
     def _radar_live(self, t_s: float) -> bool:
         """The radar measures the sea now (its newest height no older than ``radar_live_s`` at ``t_s``)."""
-        newest = self.over_sea.newest_height
-        return newest is not None and not self.over_sea.radar_lost and t_s - newest[0] <= self.checks.radar_live_s
+        return self.over_sea.height_above_sea_m(t_s) is not None
 
     def _reject(self, reason: str) -> bool:
         self.rejected[reason] += 1
