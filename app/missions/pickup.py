@@ -129,7 +129,6 @@ class PickupEstimates:
         self.fix_log: deque[tuple[float, float, float, str]] = deque(maxlen=1000)
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
-        self.gripper_closed_t_s: float | None = None  # GRAB closed the gripper then (on the water)
         self.searches_after_loss = 0  # SEARCH begun around the last estimate of an object seen and lost
         self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
         self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
@@ -325,7 +324,8 @@ class PickupEstimates:
 
     def _radar_live(self, t_s: float) -> bool:
         """The radar measures the sea now (its newest height no older than ``radar_live_s`` at ``t_s``)."""
-        return self.over_sea.height_above_sea_m(t_s) is not None
+        newest = self.over_sea.newest_height
+        return newest is not None and not self.over_sea.radar_lost and t_s - newest[0] <= self.checks.radar_live_s
 
     def _reject(self, reason: str) -> bool:
         self.rejected[reason] += 1
@@ -367,7 +367,6 @@ class PickupEstimates:
             "search_centre_e_m": centre_e_m,
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
             "grab_attempts": float(self.grab_attempts),
-            "gripper_closed_for_s": -1.0 if self.gripper_closed_t_s is None else t_s - self.gripper_closed_t_s,
             "searches_after_loss": float(self.searches_after_loss),
             "grab_sighting_age_s": math.inf if self._grab_sighting_t_s is None else t_s - self._grab_sighting_t_s,
             "verify_up_for_s": -1.0 if self.verify_up_t_s is None else t_s - self.verify_up_t_s,

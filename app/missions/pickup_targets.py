@@ -232,27 +232,6 @@ class ObjectTarget:
         pass
 
 
-class SinkTarget(ObjectTarget):
-    """GRAB's: over the object, down from ``height_m`` at ``speed_mps`` until the water holds the vehicle up — as
-    low as ``floor_m`` (below the mean sea: over a trough the water is lower than the mean; a target at the mean
-    stopped the vehicle in the air over one, and the gripper closed there)."""
-
-    name = "sink"
-
-    def __init__(
-        self, model: PickupEstimates, telemetry: Telemetry, height_m: float, speed_mps: float, floor_m: float
-    ) -> None:
-        super().__init__(model, telemetry, height_m)
-        self.speed_mps, self.floor_m = speed_mps, floor_m
-        self._t_s: float | None = None
-
-    def target_at(self, t_s: float) -> TargetState | None:
-        if self._t_s is not None:
-            self.height_m = max(self.floor_m, self.height_m - self.speed_mps * max(0.0, t_s - self._t_s))
-        self._t_s = t_s
-        return self._aim(t_s, self.height_m)
-
-
 class VerifyTarget(ObjectTarget):
     """After a grab: up to ``height_m`` over the sea, horizontally over the object's estimate while there is one
     (a missed object drifts on, and the camera must still have it in view to see that it missed), else where its
