@@ -96,6 +96,7 @@ def build_flight(
             g.velocity_error_max_mps,
             comp.precise_transient_distance_m,
             g.separate_vertical,
+            comp.precise_velocity_lead_s,
         ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

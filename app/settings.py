@@ -99,6 +99,13 @@ class AutopilotCompensation(_Model):
         description="Δ_p̃ where the mission follows its target tightly (the pickup going down onto the object: a P "
         "gain of U_a,max/Δ); unset: the transient distance, m",
     )
+    precise_velocity_lead_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=2.0,
+        description="τ_lead where the mission follows its target tightly (the object's wave orbit, faster than what "
+        "the lead is set for); unset: this autopilot's τ_lead, s",
+    )
     autopilot_params: dict[ParamName, Annotated[float, Field(allow_inf_nan=False)]] = Field(
         default_factory=dict,
         description="float parameters set on the autopilot (PARAM_SET) once it is ready, before arming; "
@@ -137,7 +144,8 @@ class GuidanceSettings(_Model):
             integral_gain_per_s2=3.0,
             inconsistency_tau_s=0.2,
             velocity_error_gain=2.0,
-            precise_transient_distance_m=0.25,
+            precise_transient_distance_m=0.2,
+            precise_velocity_lead_s=0.4,
         ),
         description="compensation for PX4 (offboard velocity control is a velocity loop only)",
     )

@@ -73,6 +73,9 @@ class Dynamics:
         self.wind = wind if wind is not None else Wind.off()
         self.battery = Battery(self.params.battery)
         self.ground_down_m = 0.0  # the ground/sea surface under the vehicle (home level)
+        # … and how it moves horizontally: a vehicle resting on it moves with it (the water's orbital velocity and
+        # current carry a vehicle sitting on the sea as they carry the object; the ground stands still)
+        self.ground_vel_ne_mps: tuple[float, float] = (0.0, 0.0)
         self._p = list(pos_ned_m)
         self._v = [0.0, 0.0, 0.0]
         self._a = [0.0, 0.0, 0.0]
@@ -327,7 +330,8 @@ class Dynamics:
             -thrust * zb_d + G_MPS2 - c * (v[2] - wind[2]),
         ]
         if self._on_ground and a[2] >= 0.0:
-            a = [0.0, 0.0, 0.0]  # resting on the ground: friction holds it
+            a = [0.0, 0.0, 0.0]  # resting on the ground: friction holds it (to the ground's own motion)
+            v[0], v[1] = self.ground_vel_ne_mps
         # v ← v + a dt,  p ← p + v dt
         v[0] += a[0] * dt_s
         v[1] += a[1] * dt_s
@@ -338,7 +342,7 @@ class Dynamics:
         if self._p[2] >= self.ground_down_m:
             self._p[2] = self.ground_down_m
             if self._v[2] >= 0.0:
-                self._v = [0.0, 0.0, 0.0]
+                self._v = [self.ground_vel_ne_mps[0], self.ground_vel_ne_mps[1], 0.0]
                 a = [0.0, 0.0, 0.0]
                 self._on_ground = True
         else:

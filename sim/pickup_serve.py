@@ -27,7 +27,7 @@ from app.settings import CameraSettings, DetectorSettings
 from sim.autopilot_endpoint import SimAutopilot
 from sim.camera_render_poses import Pose, camera_pose, object_pose
 from sim.camera_serve import CameraFrameServer
-from sim.pickup_world import PickupOutcome, PickupScenario, judge_grab, water_down_m
+from sim.pickup_world import PickupOutcome, PickupScenario, judge_grab, water_down_m, water_vel_ne_mps
 from sim.radar import RadarEmulator
 from sim.radar_live import live_sea_emulator, truth_at_from_snapshots
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
@@ -128,7 +128,9 @@ class PickupServer:
         self._gripper_closed = truth.gripper_closed
         if t_s >= self._next_water_s:  # the vehicle meets the water on the waves (``water_down_m``)
             self._next_water_s = t_s + WATER_PERIOD_S
-            self.sim.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, truth.pos_ned_m)
+            dyn = self.sim.stack.dyn
+            dyn.ground_down_m = water_down_m(self.sea, t_s, truth.pos_ned_m)
+            dyn.ground_vel_ne_mps = water_vel_ne_mps(self.sea, t_s, truth.pos_ned_m)
         if t_s >= self._next_object_log_s:
             self._next_object_log_s = t_s + OBJECT_LOG_PERIOD_S
             o = self.object.state(t_s)

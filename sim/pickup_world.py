@@ -12,10 +12,9 @@ their own rates and with their latency, computed from the truth:
 
 It also judges the pickup from the truth: where the vehicle was relative to the object when the gripper closed
 (``touchdown_error_m``) and whether the object was caught: within ``capture_radius_m``, with a gentle touchdown
-(vertical speed ≤ ``gentle_mps``) and the vehicle lower than ``GRIP_REACH_M`` over the water under it — it need
-not have touched the water (``height_m`` in the grab's record says how high it was; the evaluation reports
-it); ``fail_first_grabs`` makes the first grabs miss regardless. A caught object hangs in the gripper: the
-camera no longer sees it on the sea.
+(vertical speed ≤ ``gentle_mps``) and the vehicle on the water under it (no higher than ``GRIP_REACH_M``;
+``height_m`` in the grab's record says how high it was, the evaluation reports it); ``fail_first_grabs`` makes
+the first grabs miss regardless. A caught object hangs in the gripper: the camera no longer sees it on the sea.
 """
 
 from __future__ import annotations
@@ -153,7 +152,11 @@ class PickupWorld:
                 observe(t_s, truth, o)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
-            self.vehicle.stack.dyn.ground_down_m = water_down_m(self.sea, t_s, p, sea_down)  # at the frame rate
+            dyn = self.vehicle.stack.dyn  # at the frame rate
+            dyn.ground_down_m, dyn.ground_vel_ne_mps = (
+                water_down_m(self.sea, t_s, p, sea_down),
+                water_vel_ne_mps(self.sea, t_s, p),
+            )
             # the radar measures from its antenna, off the body origin by the lever arm
             r_ned_body = euler_zyx_to_matrix(truth.roll_rad, truth.pitch_rad, truth.yaw_rad)
             ant = np.asarray(p) + r_ned_body @ self.radar_arm_frd_m
@@ -241,10 +244,10 @@ class PickupWorld:
 DECK_RADIUS_M = 5.0  # around home the vehicle stands on the deck (down 0); beyond, on the sea
 CONTACT_M = 0.05  # the vehicle this close to the water under it has touched down on it …
 CONTACT_CLEAR_M = 0.3  # … and a next touchdown needs it this high first
-# a grab catches with the vehicle (its lowest point) lower than this over the water under it: a lenient judge —
-# the gripper closes at once, and in sea state 3 most catches closed it before the vehicle touched the water
-# (README, *Evaluating*: where the gripper closed)
-GRIP_REACH_M = 0.5
+# a grab catches with the vehicle (its lowest point) no higher than this over the water under it: on it, give or
+# take the waves' motion in a tick (0.5 before 2026-12-01: most catches at sea state 3 closed the gripper before
+# the vehicle touched the water; README, *Evaluating*: where the gripper closed)
+GRIP_REACH_M = 0.1
 
 
 def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any, sea_down_m: float | None = None) -> float:
@@ -256,6 +259,19 @@ def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any, sea_down_m: float | 
     if sea_down_m is not None:
         return sea_down_m
     return -float(sea.surface_elevation_m(t_s, pos_ned_m[0], pos_ned_m[1]))
+
+
+def water_vel_ne_mps(sea: SeaWorld, t_s: float, pos_ned_m: Any) -> tuple[float, float]:
+    """How the water under the vehicle moves it when it sits on it (``water_down_m``): the surface's orbital
+    velocity and the current, horizontal, m/s — as they move the object. Within ``DECK_RADIUS_M`` of home: the
+    deck stands still. (Before 2026-12-01 the sea held a vehicle on it still, as the ground does, while the object
+    orbited on: on the water 0.07-0.2 s before the gripper closed, it ended up to 0.11 m farther off it.)"""
+    n, e = float(pos_ned_m[0]), float(pos_ned_m[1])
+    if math.hypot(n, e) <= DECK_RADIUS_M:
+        return 0.0, 0.0
+    orbital = sea.surface_velocity_ned_mps(t_s, n, e)
+    _, (cn, ce), _ = sea.current_one(t_s)
+    return float(orbital[0]) + cn, float(orbital[1]) + ce
 
 
 def judge_grab(

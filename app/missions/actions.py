@@ -14,8 +14,6 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from app.errors import VehicleError
-from app.messages import Autopilot, LandedState
 from app.missions.circle import CircleMission
 from app.missions.descend_target import DescendTarget
 from app.missions.estimates import MissionModel
@@ -25,10 +23,12 @@ from app.missions.pickup_targets import (
     DriftingPoint,
     ObjectTarget,
     SearchPattern,
+    SinkTarget,
     Transit,
     VerifyTarget,
     expanding_square,
 )
+from app.missions.water import CONTACT_POLL_S, WaterContact, off_the_water
 from app.offboard.boundary import VehicleBoundary
 from app.offboard.setpoint_loop import FixedPoint, SetpointLoop
 
@@ -187,18 +187,18 @@ async def start_search(io: MissionIO) -> None:
     search = m.search
     # entered from the water too (TRACK, taking off after an off-target touchdown, lost the object meanwhile and
     # its entry was cancelled): on ArduPilot a landed vehicle would sit there at ground idle
-    await _off_the_water(io, lambda: io.setpoints.engage(search), p.verify_height_m)
+    await off_the_water(io, _pickup(io), lambda: io.setpoints.engage(search), p.verify_height_m)
 
 
 async def start_approach(io: MissionIO) -> None:
     """Above the estimate at the search height above the sea (from the water first, as ``start_search``)."""
     target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.search_altitude_m, _lean_yaw(io))
-    await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
+    await off_the_water(io, _pickup(io), lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 async def start_track(io: MissionIO) -> None:
     target = ObjectTarget(_pickup(io), io.boundary.telemetry, io.params.track_height_m, _lean_yaw(io))
-    await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
+    await off_the_water(io, _pickup(io), lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 async def start_descend(io: MissionIO) -> None:
@@ -237,13 +237,29 @@ def _lean_yaw(io: MissionIO) -> float | None:
 
 
 async def grab(io: MissionIO) -> None:
-    """Close the gripper (MAV_CMD_DO_GRIPPER), staying on the water over the object meanwhile (it moves on the
-    waves; without an estimate the loop holds where it is)."""
+    """Come down onto the water over the object (it moves on the waves; without an estimate the loop holds where it
+    is) and close the gripper (MAV_CMD_DO_GRIPPER) once on it (``water.WaterContact``), or after
+    ``grab_contact_timeout_s`` regardless (a grab in the air misses: VERIFY sees the object and retries).
+
+    Touchdown is judged at ``touchdown_height_m`` (0.3 m) over the water by the radar or over the *mean* sea (under
+    the radar's first range it sees nothing): a gripper closed there closed in the air, 0.25 m over the water on
+    the median catch at sea state 3, up to 0.5 m (README, *Evaluating*: where the gripper closed)."""
     m = _pickup(io)
+    m.gripper_closed_t_s = None
+    p, now_s = io.params, io.now_s()
+    start_m = m.height_over_mean_sea_m(now_s)
+    start_m = p.touchdown_height_m if start_m is None else start_m
+    sink = SinkTarget(m, io.boundary.telemetry, start_m, p.grab_sink_speed_mps, -p.grab_press_m)
+    io.setpoints.engage(sink, allow_below_min=True, keep_integral=True)  # the same object as DESCEND's
+    contact = WaterContact(io, now_s)
+    while True:  # (polled: the telemetry and the loop clock are what it waits on)
+        if io.now_s() - now_s >= p.grab_contact_timeout_s or contact.on_it():
+            break
+        await asyncio.sleep(CONTACT_POLL_S)
     pv = io.boundary.telemetry().pos_vel
     m.on_grab((pv.pos_ned_m[0], pv.pos_ned_m[1]) if pv is not None else m.last_estimate_ne_m or (math.nan, math.nan))
-    io.setpoints.engage(ObjectTarget(m, io.boundary.telemetry, 0.0), allow_below_min=True)
     await io.boundary.grip(True)
+    m.gripper_closed_t_s = io.now_s()
 
 
 async def start_verify(io: MissionIO) -> None:
@@ -255,7 +271,9 @@ async def start_verify(io: MissionIO) -> None:
         return
     m = _pickup(io)
     verify = VerifyTarget(m, io.boundary.telemetry, io.params.verify_height_m, (pv.pos_ned_m[0], pv.pos_ned_m[1]))
-    await _off_the_water(io, lambda: io.setpoints.engage(verify, allow_below_min=True), io.params.verify_height_m)
+    await off_the_water(
+        io, _pickup(io), lambda: io.setpoints.engage(verify, allow_below_min=True), io.params.verify_height_m
+    )
     m.verify_up_t_s = None
     while True:  # up (by the radar, as the guards judge it) and over where a missed object would be: VERIFY looks
         t_s = io.now_s()
@@ -272,68 +290,6 @@ async def start_verify(io: MissionIO) -> None:
         await asyncio.sleep(0.05)
 
 
-WATER_WATCH_S = 5.0  # how long a climb from the water is watched for ArduCopter's land detector
-NEAR_WATER_M = 1.0  # a climb starting this close to the sea is watched
-TAKEOFF_ATTEMPTS = 3  # NAV_TAKEOFF from the water, tried this often (0.5 s apart) while still landed
-
-
-def _landed(io: MissionIO) -> bool:
-    ls = io.boundary.telemetry().landed_state
-    return ls is not None and ls.value is LandedState.ON_GROUND
-
-
-def _near_the_water(io: MissionIO) -> bool:
-    """Within ``NEAR_WATER_M`` of the sea by the radar, or by the altitude over the tracked mean sea."""
-    m, now_s = _pickup(io), io.now_s()
-    heights = (m.height_above_sea_m(now_s), m.height_over_mean_sea_m(now_s))
-    return any(h is not None and h <= NEAR_WATER_M for h in heights)
-
-
-async def _off_the_water(io: MissionIO, engage: Callable[[], None], climb_m: float) -> None:
-    """``engage`` the climb; on ArduPilot, watch it leave the water and take off when velocity will not do.
-
-    PX4 takes off in OFFBOARD when the setpoint climbs. ArduCopter does not: once its land detector has set
-    land_complete (it may do so a moment after the climb began, the vehicle still on the water), GUIDED's velocity
-    control keeps the motors at ground idle (and DISARM_DELAY runs), and only a NAV_TAKEOFF leaves the ground.
-    So on ArduPilot, while landed within ``WATER_WATCH_S``: leave offboard (zero velocity, then BRAKE — MAVSDK
-    would otherwise keep re-sending our setpoint, which cancels a guided takeoff), take off in GUIDED to
-    ``climb_m`` above where it sits (the altitude is above home), wait until it is off the water and that high,
-    take offboard again and ``engage`` once more. The state's timeout bounds the waits; an abort or a takeover
-    cancels them."""
-    engage()
-    if io.boundary.vehicle.autopilot is not Autopilot.ARDUPILOT or not (_landed(io) or _near_the_water(io)):
-        return
-    h0 = io.boundary.telemetry().height_above_home_m() or 0.0
-    t_end_s = io.now_s() + WATER_WATCH_S
-    while not _landed(io):
-        h = io.boundary.telemetry().height_above_home_m()
-        if io.now_s() >= t_end_s or (h is not None and h >= h0 + climb_m / 2.0):
-            return  # climbing on velocity setpoints: it was not landed
-        await asyncio.sleep(0.05)
-    target_m = max(h0 + climb_m, climb_m)
-    io.setpoints.disengage()
-    await io.boundary.leave_offboard("takeoff from the water (ArduPilot: NAV_TAKEOFF)")
-    for attempt in range(TAKEOFF_ATTEMPTS):
-        try:
-            await io.boundary.takeoff(target_m)
-            break
-        except VehicleError:
-            if not _landed(io):  # a trough took the water away meanwhile: flying again, velocity will do
-                await io.boundary.start_offboard()
-                engage()
-                return
-            if attempt + 1 == TAKEOFF_ATTEMPTS:
-                raise
-            await asyncio.sleep(0.5)
-    while True:
-        h = io.boundary.telemetry().height_above_home_m()
-        if not _landed(io) and h is not None and h >= target_m - io.params.altitude_tolerance_m:
-            break
-        await asyncio.sleep(0.1)
-    await io.boundary.start_offboard()
-    engage()
-
-
 async def confirm_pickup(io: MissionIO) -> None:
     _pickup(io).picked_up = True
 
@@ -348,7 +304,7 @@ async def lift(io: MissionIO) -> None:
     if pv is None:
         return
     lift = FixedPoint("lift", (pv.pos_ned_m[0], pv.pos_ned_m[1], -io.params.lift_altitude_m))
-    await _off_the_water(io, lambda: io.setpoints.engage(lift), io.params.verify_height_m)
+    await off_the_water(io, _pickup(io), lambda: io.setpoints.engage(lift), io.params.verify_height_m)
 
 
 async def return_home(io: MissionIO) -> None:
@@ -370,7 +326,7 @@ async def return_home(io: MissionIO) -> None:
             io.now_s(),
         )
     )
-    await _off_the_water(io, lambda: io.setpoints.engage(target), io.params.verify_height_m)
+    await off_the_water(io, _pickup(io), lambda: io.setpoints.engage(target), io.params.verify_height_m)
 
 
 ACTIONS: dict[str, ActionSpec] = {

@@ -43,8 +43,8 @@ class DescendTarget(ObjectTarget):
     height, a crest above the highest of the last minute reached it, and climbing back from low down, the water
     rose faster than the vehicle. Going down on a fresh converged fix over an object drifting no faster than
     ``precise_max_drift_mps``, its target asks guidance for precision (``TargetState.precise``: the position loop
-    at a gain of 8 1/s on PX4, 6.7 on ArduPilot, instead of 5; ``guidance.<autopilot>``): the vehicle lagged the
-    object's wave orbit by up to 0.15 m there, and where it lags it meets the water."""
+    at a gain of 10 1/s and a 0.4 s lead on PX4, 6.7 1/s on ArduPilot, instead of 5; ``guidance.<autopilot>``): the
+    vehicle lagged the object's wave orbit by up to 0.15 m there, and where it lags it meets the water."""
 
     name = "descend"
 

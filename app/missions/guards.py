@@ -207,7 +207,8 @@ def object_beyond_fence(ctx: GuardContext) -> bool:
 
 
 def grab_settled(ctx: GuardContext) -> bool:
-    return ctx.time_in_state_s >= GRAB_SETTLE_S
+    """The gripper closed (on the water: ``actions.grab``) ``GRAB_SETTLE_S`` ago."""
+    return ctx.estimates.progress.get("gripper_closed_for_s", -1.0) >= GRAB_SETTLE_S
 
 
 def _seen_on_sea(ctx: GuardContext) -> bool:

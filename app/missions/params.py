@@ -187,6 +187,24 @@ class MissionParams(BaseModel):
         False, description="descend onto the object only after an operator's authorize_land (thesis), true/false"
     )
     touchdown_height_m: float = Field(0.3, ge=0.05, le=2.0, description="radar height that counts as touchdown, m")
+    grab_contact_speed_mps: float = Field(
+        0.05, ge=0.0, le=0.5, description="in GRAB, asked down, sinking no faster than this: on the water, m/s"
+    )
+    grab_contact_drop_mps: float = Field(
+        0.4,
+        ge=0.05,
+        le=2.0,
+        description="in GRAB, sinking this much slower than 0.2 s before at most: the water met it, m/s",
+    )
+    grab_sink_speed_mps: float = Field(
+        0.8, ge=0.1, le=1.0, description="in GRAB, down onto the water at this (blind: quickly), m/s"
+    )
+    grab_press_m: float = Field(
+        1.0, ge=0.0, le=3.0, description="in GRAB, down to the water, at most to this below the mean sea, m"
+    )
+    grab_contact_timeout_s: float = Field(
+        3.0, ge=0.1, le=8.0, description="in GRAB, not on the water after this long: close the gripper anyway, s"
+    )
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
     size_tolerance: float = Field(
         0.15, ge=0.02, le=1.0, description="apparent size within this of the expected (plus the waves' share)"

@@ -19,10 +19,10 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    detection must be within ±17.5 % of the marker's size: a same-ID print of 0.2 m (20 px, ratio 0.67–0.73
    on rendered frames) is refused, the marker itself (0.93–1.0) is not. A buoy is a sphere of the detector's
    ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy. With
-   ``height_from_size`` (off by default), a detection that passes, where the radar measures no sea now (below
-   its first range, low over the object: its last height, held while the vehicle comes down, was 0.26 m high
-   at 0.31 m and put fixes 6–7 cm off), is triangulated again at the height its apparent size gives, when that
-   is the surer;
+   ``height_from_size`` (the pickup's default), a detection where the radar measures no sea now (below its first
+   range, low over the object: its last height, held while the vehicle comes down, was 0.26 m high at 0.31 m and
+   put fixes 6–7 cm off) is triangulated again at the height its apparent size gives, when that is the surer and
+   plausible (``fix_checks.sized_height``) — and is then not held to the size check against the held height;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
    must agree within ``confirm_radius_m``, and they must be at least ``confirm_fraction`` of the frames of that
    window (M of N, as a radar tracker confirms a track); only then is the filter started (with the newest).
@@ -46,7 +46,6 @@ from numpy.typing import ArrayLike
 
 from app.estimators.apparent_size import (
     apparent_size_ratio,
-    height_from_size,
     marker_size_rel_std,
     polygon_area,
     sphere_size_ratio,
@@ -62,7 +61,7 @@ from app.messages import (
     VehicleStateNed,
 )
 from app.missions.estimates import Estimates, SensorHealth
-from app.missions.fix_checks import SIZE_RATIO_RANGE, FixChecks, LockConfirmation
+from app.missions.fix_checks import FixChecks, LockConfirmation, sized_height
 from app.missions.vehicle_over_sea import VehicleOverSea
 
 if TYPE_CHECKING:
@@ -129,6 +128,7 @@ class PickupEstimates:
         self.fix_log: deque[tuple[float, float, float, str]] = deque(maxlen=1000)
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
+        self.gripper_closed_t_s: float | None = None  # GRAB closed the gripper then (on the water)
         self.searches_after_loss = 0  # SEARCH begun around the last estimate of an object seen and lost
         self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
         self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
@@ -263,10 +263,12 @@ class PickupEstimates:
         fix = triangulate(state, height_m, height_std_m)
         if fix is None:
             return self._reject("no_ray")
-        if c.wave_slope > 0.0 and self.radar_height_at(t_s) is not None:
+        if c.wave_slope > 0.0 and self._radar_live(t_s):
             # … but by no more than the sea's slope over the distance from the radar's spot to the object: right
             # over the object (descending) the radar measures the sea the object floats on, and a fix whose
-            # covariance still carried the whole wave height would be trusted ten times too little
+            # covariance still carried the whole wave height would be trusted ten times too little (only while
+            # it measures the sea now: its last height, carried down below its first range, is as uncertain as
+            # the water's rise and fall since — trusted as a live one, such fixes put the estimate 0.23 m off)
             p, o = state.pos_ned_m, fix.observation.pos_ned_m
             local_std_m = max(c.radar_height_std_m, c.wave_slope * math.hypot(o[0] - p[0], o[1] - p[1]))
             if local_std_m < height_std_m:
@@ -274,20 +276,23 @@ class PickupEstimates:
                 height_std_m = local_std_m
         tolerance = c.size_tolerance + height_uncertainty_m / max(fix.camera_height_m, 0.1)
         ratio = size_ratio(fix)
-        if not abs(ratio - 1.0) <= tolerance:
+        sized = None
+        if c.height_from_size and not self._radar_live(t_s):
+            # where the radar measures no sea now — below its first range (its last height, held while the vehicle
+            # comes down, was 0.26 m high at 0.31 m) — the size may tell the range better (``sized_height``)
+            descended_m = self.over_sea.descended_since_radar_m(t_s) or 0.0
+            sized_h = sized_height(fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std),
+                                   height_std_m, descended_m)  # fmt: skip
+            if sized_h is not None:
+                sized = triangulate(state, height_m + sized_h[0] - fix.camera_height_m, sized_h[1])
+        if sized is not None:
+            # … and then the size is what is checked against the ratio range, not against that held height: a
+            # nested marker seen whole at 0.2 m was 2.6-5.9 times the area the held height gave, and refused (the
+            # MAVLink pickup, seed 1: the last 0.9 s blind, 0.15 m off)
+            fix = sized
+            self.sized_fixes += 1
+        elif not abs(ratio - 1.0) <= tolerance:
             return self._reject("size")
-        if c.height_from_size and not self._radar_live(t_s) and SIZE_RATIO_RANGE[0] <= ratio <= SIZE_RATIO_RANGE[1]:
-            # the right size for the range, give or take the height's error: the size then tells the range better
-            # than that height where the radar measures no sea now — below its first range (its last height, held
-            # while the vehicle comes down, was 0.26 m high at 0.31 m)
-            sized_m, sized_std_m = height_from_size(
-                fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std)
-            )
-            if sized_std_m < height_std_m:
-                sized = triangulate(state, height_m + sized_m - fix.camera_height_m, sized_std_m)
-                if sized is not None:
-                    fix = sized
-                    self.sized_fixes += 1
         obs = fix.observation
         n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]
         g, d = self.grab_ne_m, self.drifted(t_s)
@@ -324,8 +329,7 @@ class PickupEstimates:
 
     def _radar_live(self, t_s: float) -> bool:
         """The radar measures the sea now (its newest height no older than ``radar_live_s`` at ``t_s``)."""
-        newest = self.over_sea.newest_height
-        return newest is not None and not self.over_sea.radar_lost and t_s - newest[0] <= self.checks.radar_live_s
+        return self.over_sea.height_above_sea_m(t_s) is not None
 
     def _reject(self, reason: str) -> bool:
         self.rejected[reason] += 1
@@ -367,6 +371,7 @@ class PickupEstimates:
             "search_centre_e_m": centre_e_m,
             "search_done": 1.0 if self.search is not None and self.search.done(t_s) else 0.0,
             "grab_attempts": float(self.grab_attempts),
+            "gripper_closed_for_s": -1.0 if self.gripper_closed_t_s is None else t_s - self.gripper_closed_t_s,
             "searches_after_loss": float(self.searches_after_loss),
             "grab_sighting_age_s": math.inf if self._grab_sighting_t_s is None else t_s - self._grab_sighting_t_s,
             "verify_up_for_s": -1.0 if self.verify_up_t_s is None else t_s - self.verify_up_t_s,

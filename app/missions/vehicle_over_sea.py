@@ -5,7 +5,7 @@ Inputs, each stamped with the time it was *measured* (loop clock): the vehicle's
 (``on_radar_lost``). Radar heights become samples of the mean sea surface (``app.estimators.sea_level``) once the
 vehicle's altitude at their time is known. Asked: the vehicle at a frame's capture time (``state_at``, a little
 past the newest sample at its speed), the height above the sea then (``height_at``: the radar's, else the
-altitude over the sea reference), the newest radar height (``height_above_sea_m``) and the altitude over the
+altitude over the sea reference), the radar's live height (``height_above_sea_m``) and the altitude over the
 tracked mean sea (``height_over_mean_sea_m``). The limits are ``FixChecks``'. Pure: no asyncio, no clock reads.
 
 Each sea-surface sample also gives the sea's elevation under the vehicle, up from the mean of the samples over
@@ -165,11 +165,25 @@ class VehicleOverSea:
                 return h1 + f * (h0 - h1)
         return hs[0][1] if hs[0][0] - t_s <= max_age_s else None
 
+    def descended_since_radar_m(self, t_s: float) -> float | None:
+        """How far the vehicle has come down (its altitude, from the autopilot) between the radar's newest height
+        and ``t_s``, m (negative: it climbed); None without both states."""
+        newest = self.newest_height
+        if newest is None:
+            return None
+        then, now = self.state_at(newest[0]), self.state_at(t_s)
+        return None if then is None or now is None else now.pos_ned_m[2] - then.pos_ned_m[2]
+
     def on_radar_lost(self) -> None:
         self.radar_lost = True
 
     def height_above_sea_m(self, t_s: float) -> float | None:
+        """The radar's height while it measures the sea now: its newest, no older than ``radar_live_s`` (a frame
+        and a half at 10 Hz). Below its first range, low over the water, it measures nothing, and its last height,
+        held for ``height_max_age_s`` while the vehicle came down at 0.5 m/s, was up to 0.25 m high: DESCEND then
+        judged the water out of reach and turned back over it, and the touchdown went unseen (README,
+        *Evaluating*). The altitude over the tracked mean sea (``height_over_mean_sea_m``) stands in then."""
         h = self.newest_height
-        if h is None or self.radar_lost or t_s - h[0] > self.checks.height_max_age_s:
+        if h is None or self.radar_lost or t_s - h[0] > self.checks.radar_live_s:
             return None
         return h[1]

@@ -104,16 +104,24 @@ class SetpointLoop:
 
     # ---- control (called by the mission runner) -------------------------------------------------
 
-    def engage(self, source: TargetSource | None, *, allow_below_min: bool = False) -> None:
-        """Start guiding toward ``source``; ``None`` holds the current position."""
+    def engage(
+        self, source: TargetSource | None, *, allow_below_min: bool = False, keep_integral: bool = False
+    ) -> None:
+        """Start guiding toward ``source``; ``None`` holds the current position. ``keep_integral``: ``source``
+        follows the same target as the source it replaces (GRAB's sink after DESCEND, both over the object): the
+        integral term built on that one carries on rather than restarting at zero."""
         tel = self._boundary.telemetry()
         if self.mode != LoopMode.GUIDE and tel.attitude is not None:
             self._yaw_rad = tel.attitude.yaw_rad
         self._hold = None
         if source is None and tel.pos_vel is not None:
             source = self._hold = FixedPoint("hold", tel.pos_vel.pos_ned_m)
+        carry_on = keep_integral and self.mode == LoopMode.GUIDE and self._integral_source is self._source
         self._source = source
-        self._reset_integral(None)
+        if carry_on and source is not None:
+            self._integral_source = source
+        else:
+            self._reset_integral(None)
         self._allow_below_min = allow_below_min
         self.mode = LoopMode.GUIDE
         self._events.write(self._clock.now_s(), "setpoint", decision="engage", source=source.name if source else None)

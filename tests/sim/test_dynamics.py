@@ -106,6 +106,20 @@ def test_ground_holds_a_vehicle_without_climb_thrust_and_wind_cannot_slide_it() 
     assert not dyn.state.on_ground and dyn.state.pos_ned_m[2] < -1.0
 
 
+def test_a_vehicle_resting_on_the_water_moves_with_it_and_leaves_it_climbing() -> None:
+    """On the sea the ground moves (``ground_vel_ne_mps``: the surface's orbital velocity and the current, as they
+    move the floating object): a vehicle pushing down onto it is carried along at that velocity, in the wind too,
+    and a climb takes it off."""
+    dyn = Dynamics(wind=Wind(WindConfig(mean_mps=10.0)))
+    dyn.ground_vel_ne_mps = (0.3, -0.4)
+    run(dyn, 2.0, ControlInput((0.0, 0.0, 0.5)))  # pushing down onto the water
+    s = dyn.state
+    assert s.on_ground and s.pos_ned_m[2] == 0.0 and s.vel_ned_mps == (0.3, -0.4, 0.0)
+    assert s.pos_ned_m[:2] == pytest.approx((0.6, -0.8), abs=0.01)
+    run(dyn, 2.0, ControlInput((0.0, 0.0, -1.0)))
+    assert not dyn.state.on_ground and dyn.state.pos_ned_m[2] < -1.0
+
+
 def test_free_fall_without_thrust_ends_on_the_ground() -> None:
     dyn = hovering(altitude_m=5.0)
     run(dyn, 3.0, ControlInput(motors_on=False))

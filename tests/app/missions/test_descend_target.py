@@ -15,7 +15,7 @@ from app.estimators.sea_level import MeanSeaLevel
 from app.messages import PositionVelocityNed, TargetEstimate, TelemetrySnapshot
 from app.missions.descend_target import DescendTarget
 from app.missions.estimates import Estimates
-from app.missions.pickup_targets import VerifyTarget
+from app.missions.pickup_targets import SinkTarget, VerifyTarget
 
 DT = 0.02
 
@@ -160,6 +160,17 @@ def test_verify_follows_the_estimate_up_and_stays_where_it_was_last_when_it_is_g
     scene.estimate = lambda t_s: None  # type: ignore[method-assign]  # the lock timed out
     state = target.target_at(101.0)
     assert state.pos_ned_m == (0.0, 0.0, -3.0) and state.vel_ned_mps == (0.0, 0.0, 0.0)
+
+
+def test_grab_sinks_over_the_object_tightly_its_sinking_speed_fed_forward_down_to_its_floor():
+    scene = Scene()
+    target = SinkTarget(scene, scene.telemetry, 0.3, 0.8, -1.0)  # type: ignore[arg-type]
+    first = target.target_at(100.0)
+    assert first.pos_ned_m == (0.0, 0.0, -0.3) and first.vel_ned_mps == (0.0, 0.0, 0.8) and first.precise
+    later = target.target_at(100.5)  # 0.4 m lower, still sinking at 0.8 m/s
+    assert later.pos_ned_m == pytest.approx((0.0, 0.0, 0.1)) and later.vel_ned_mps == (0.0, 0.0, 0.8)
+    bottom = target.target_at(102.5)  # at its floor, 1 m under the mean sea: no more sinking fed forward
+    assert bottom.pos_ned_m == (0.0, 0.0, 1.0) and bottom.vel_ned_mps == (0.0, 0.0, 0.0) and bottom.precise
 
 
 def test_verify_without_an_estimate_follows_where_the_objects_drift_takes_it():

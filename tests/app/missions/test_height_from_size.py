@@ -113,3 +113,41 @@ def test_low_down_the_markers_size_puts_the_fix_on_the_object_where_the_held_rad
     assert held[-1] > 0.04  # 0.2 m too high at the end
     assert max(sized[3:]) < 0.01
     assert held_m.rejected == sized_m.rejected  # the size check refused nothing either way
+
+
+def test_a_nested_marker_seen_whole_far_below_the_held_radar_height_is_sized_not_refused():
+    """Sea state 2 (Hs/2 = 0.25 m on the height): down at 0.5 m/s from 0.6 m to 0.2 m, the radar's 0.60 m held.
+    At 0.25 m the nested marker is ~2.6 times the area the held height gives — over the size check's tolerance, and
+    refused so (the MAVLink pickup went blind for its last 0.9 s). With ``height_from_size`` its size gives the
+    range and the fix is fused, on the object."""
+    results = {}
+    for sized in (False, True):
+        checks = FixChecks(marker_size_m=0.30, height_uncertainty_m=0.25, height_from_size=sized)
+        m = PickupEstimates(
+            SeaPlaneTriangulator.from_settings(CAM),
+            make_target_filter(MissionParams(target_filter="wave", sea_state=2)),
+            checks,
+        )
+        camera = GeometricCamera(CAM, marker_size_m=0.025, pixel_noise_std_px=0.5, seed=3)
+        obj = (0.03, -0.02, 0.0)
+        m.on_height(0.0, 0.60)
+        errors = []
+        for k in range(36):  # 0.7 s: 0.60 → 0.25 m
+            t_s = 0.02 * k
+            down_m = -0.60 + 0.5 * t_s
+            m.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, down_m), (0.0, 0.0, 0.5)))
+            m.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+            if k % 5 == 0:
+                f = camera.frame(t_s, (0.0, 0.0, down_m), 0.0, 0.0, 0.0, obj)
+                assert f.visible
+                m.on_marker(t_s, f.corners_px, 0.025)
+                if m.fix_log and m.fix_log[-1][0] == t_s:  # triangulated (fused or judged), not refused
+                    _, n_m, e_m, _ = m.fix_log[-1]
+                    errors.append(math.hypot(n_m - obj[0], e_m - obj[1]))
+        results[sized] = (m.rejected.get("size", 0), m.sized_fixes, errors)
+    print(results)
+    held_refused, _, held_errors = results[False]
+    sized_refused, sized_count, sized_errors = results[True]
+    assert held_refused >= 2 and len(held_errors) == 8 - held_refused  # the lowest frames refused
+    assert sized_refused == 0 and sized_count >= 4 and len(sized_errors) == 8
+    assert max(sized_errors) < 0.02

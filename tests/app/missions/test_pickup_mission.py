@@ -230,6 +230,8 @@ async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_
     assert flight.result.outcome == "picked_up" and out.caught
     assert all(g["error_m"] <= scenario.capture_radius_m for g in out.grabs)  # never off target on the water:
     assert all(c["error_m"] <= scenario.capture_radius_m for c in out.contacts)  # not even without a grab
+    # the gripper closed on the water, not over it (touchdown is judged 0.3 m up: the radar sees no closer)
+    assert all(g["height_m"] <= 0.1 and any(c["t_s"] <= g["t_s"] for c in out.contacts) for g in out.grabs)
     assert_never_descends_low_without_a_fresh_fix(world, table.params)
 
 

@@ -22,7 +22,9 @@ def test_a_radar_height_is_interpolated_at_a_capture_time_and_refused_when_too_o
     assert v.radar_height_at(10.05) == pytest.approx(4.1)  # between the two around it
     assert v.radar_height_at(10.5) == 4.2  # the newest, within height_max_age_s (0.5 s) …
     assert v.radar_height_at(10.7) is None  # … not past it
-    assert v.height_above_sea_m(10.3) == 4.2
+    # the live height: the newest while no older than radar_live_s (0.15 s), not held as long as a capture's
+    assert v.height_above_sea_m(10.2) == 4.2
+    assert v.height_above_sea_m(10.3) is None and v.radar_height_at(10.3) == 4.2
     v.on_radar_lost()
     assert v.radar_height_at(10.1) is None and v.height_above_sea_m(10.1) is None
     v.on_height(10.2, 4.4)  # a height again: the radar is back

@@ -155,3 +155,40 @@ async def test_a_precise_target_gets_the_precise_transient_distance(precise, nor
         loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, (0.0, 0.0, -5.0), (0.0, 0.0, 0.0))
     )
     assert boundary.sent[-1][0] == pytest.approx(north_mps, abs=1e-4) and boundary.sent[-1][1:] == (0.0, 0.0)
+
+
+async def test_a_source_following_the_same_target_keeps_the_integral_only_when_asked():
+    """GRAB's sink takes over from DESCEND over the same object: with ``keep_integral`` the integral built on the
+    standing error carries on; a plain engage (or one from a hold) restarts it at zero."""
+    still = lambda t_s, s: PositionVelocityNed(t_s, (0.0, 0.0, -5.0), (0.0, 0.0, 0.0))  # noqa: E731
+    p_term = 2.0 * 0.1 / (0.1**2 + 0.4**2) ** 0.5
+    built = 3.0 * 0.1 * 0.98  # 49 steps of K_I·e·dt
+    for keep, expected in ((True, p_term + built + 3.0 * 0.1 * 0.02), (False, p_term)):
+        loop, clock, boundary = make_loop(integral_gain_per_s2=3.0)
+        loop.engage(Fixed((0.1, 0.0, -5.0)))
+        await run_ticks(loop, clock, boundary, 50, still)
+        assert boundary.sent[-1][0] == pytest.approx(p_term + built, abs=0.01)
+        loop.engage(Fixed((0.1, 0.0, -5.0)), keep_integral=keep)
+        await run_ticks(loop, clock, boundary, 1, still)
+        assert boundary.sent[-1][0] == pytest.approx(expected, abs=0.01), keep
+    loop.disengage()  # not guiding: nothing to carry on
+    loop.engage(Fixed((0.1, 0.0, -5.0)), keep_integral=True)
+    await run_ticks(loop, clock, boundary, 1, still)
+    assert boundary.sent[-1][0] == pytest.approx(p_term, abs=1e-9)
+
+
+@pytest.mark.parametrize(("precise", "north_mps"), [(False, 0.7), (True, 0.4)])
+async def test_a_precise_target_gets_the_precise_lead(precise, north_mps):
+    """On a still vehicle right on a target accelerating north at 1 m/s²: the feed-forward is τ_lead·a_t, with the
+    autopilot's lead (0.7 s) or, for a target that asks for precision, the precise one (0.4 s)."""
+    loop, clock, boundary = make_loop(velocity_lead_s=0.7, precise_velocity_lead_s=0.4)
+
+    class Accelerating(Fixed):
+        def target_at(self, t_s):
+            return TargetState(t_s, self.pos, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), precise=precise)
+
+    loop.engage(Accelerating((0.0, 0.0, -5.0)))
+    await run_ticks(
+        loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, (0.0, 0.0, -5.0), (0.0, 0.0, 0.0))
+    )
+    assert boundary.sent[-1] == pytest.approx((north_mps, 0.0, 0.0), abs=1e-9)
