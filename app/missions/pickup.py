@@ -280,7 +280,8 @@ class PickupEstimates:
         if c.height_from_size and not self._radar_live(t_s):
             # where the radar measures no sea now — below its first range (its last height, held while the vehicle
             # comes down, was 0.26 m high at 0.31 m) — the size may tell the range better (``sized_height``)
-            descended_m = self.over_sea.descended_since_radar_m(t_s) or 0.0
+            held = self.radar_height_at(t_s) is not None  # (else the height is the altitude over the mean sea, now)
+            descended_m = (self.over_sea.descended_since_radar_m(t_s) or 0.0) if held else 0.0
             sized_h = sized_height(fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std),
                                    height_std_m, descended_m)  # fmt: skip
             if sized_h is not None:
