@@ -152,10 +152,11 @@ class PickupWorld:
                 observe(t_s, truth, o)
             p = truth.pos_ned_m
             sea_down = -float(self.sea.surface_elevation_m(t_s, p[0], p[1]))
+            sea_vel = self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])
             dyn = self.vehicle.stack.dyn  # at the frame rate
             dyn.ground_down_m, dyn.ground_vel_ne_mps = (
                 water_down_m(self.sea, t_s, p, sea_down),
-                water_vel_ne_mps(self.sea, t_s, p),
+                water_vel_ne_mps(self.sea, t_s, p, sea_vel),
             )
             # the radar measures from its antenna, off the body origin by the lever arm
             r_ned_body = euler_zyx_to_matrix(truth.roll_rad, truth.pitch_rad, truth.yaw_rad)
@@ -167,7 +168,7 @@ class PickupWorld:
                 # estimator takes the lever arm out)
                 body_m = sea_under_antenna_down - p[2]
                 feeds.heights.put(HeightSample(t_s, body_m + float(self.rng.normal(0.0, sc.radar_noise_m))))
-            sea_wd = float(self.sea.surface_velocity_ned_mps(t_s, p[0], p[1])[2])
+            sea_wd = float(sea_vel[2])
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
             self._note_contact(t_s, sea_down - p[2], p, o.pos_ned_m)
             # a caught object hangs in the gripper, out of the camera's sea
@@ -261,15 +262,16 @@ def water_down_m(sea: SeaWorld, t_s: float, pos_ned_m: Any, sea_down_m: float | 
     return -float(sea.surface_elevation_m(t_s, pos_ned_m[0], pos_ned_m[1]))
 
 
-def water_vel_ne_mps(sea: SeaWorld, t_s: float, pos_ned_m: Any) -> tuple[float, float]:
+def water_vel_ne_mps(sea: SeaWorld, t_s: float, pos_ned_m: Any, surface_vel_ned_mps: Any = None) -> tuple[float, float]:
     """How the water under the vehicle moves it when it sits on it (``water_down_m``): the surface's orbital
     velocity and the current, horizontal, m/s — as they move the object. Within ``DECK_RADIUS_M`` of home: the
     deck stands still. (Before 2026-12-01 the sea held a vehicle on it still, as the ground does, while the object
-    orbited on: on the water 0.07-0.2 s before the gripper closed, it ended up to 0.11 m farther off it.)"""
+    orbited on: on the water 0.07-0.2 s before the gripper closed, it ended up to 0.11 m farther off it.)
+    ``surface_vel_ned_mps``: the surface's velocity there, when the caller has it already."""
     n, e = float(pos_ned_m[0]), float(pos_ned_m[1])
     if math.hypot(n, e) <= DECK_RADIUS_M:
         return 0.0, 0.0
-    orbital = sea.surface_velocity_ned_mps(t_s, n, e)
+    orbital = sea.surface_velocity_ned_mps(t_s, n, e) if surface_vel_ned_mps is None else surface_vel_ned_mps
     _, (cn, ce), _ = sea.current_one(t_s)
     return float(orbital[0]) + cn, float(orbital[1]) + ce
 
