@@ -18,8 +18,9 @@ whatever ``--runs`` is — so a run can be repeated anywhere (a local process, a
 
 A configuration is what the *app* does differently: ``seapick`` (the defaults) and ``thesis`` (the thesis's
 constant-velocity filter as its Listing 4.1 has it — no innovation gate, every fix fused —, no latency
-compensation, full-frame detection); ``seapick-size`` is seapick taking the height of its fixes low over the
-object from the object's apparent size (``fix_height_from_size``); ``seapick-lean`` is seapick turning so that
+compensation, full-frame detection); ``seapick-held`` is seapick triangulating its fixes low over the object at
+the radar's last height, held, rather than at the height the object's apparent size gives (``fix_height_from_size``
+false: the default until 2026-12-01); ``seapick-lean`` is seapick turning so that
 its mean lean lies along the image's wider side (``lean_yaw_min_tilt_deg``); ``seapick-wide`` is seapick with
 the wave filter's oscillators on to 3.4·ω_p (``wave_oscillators``). Each is told the scenario's sea
 state: the wave filter takes its Hs and Tp from it, the constant-velocity filter the process noise tuned for it
@@ -75,7 +76,7 @@ class EvalConfig:
     full_frame_detection: bool
     innovation_gate: bool = True
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
-    height_from_size: bool = False  # low down, the height from the object's apparent size (``fix_height_from_size``)
+    height_from_size: bool = True  # low down, the height from the object's apparent size (``fix_height_from_size``)
     wave_oscillators: str = "standard"  # the wave filter's bank (``MissionParams.wave_oscillators``)
 
     def as_dict(self) -> dict[str, Any]:
@@ -90,11 +91,13 @@ CONFIGS: dict[str, EvalConfig] = {
         latency_compensation=False,
         full_frame_detection=True,
         innovation_gate=False,
+        height_from_size=False,  # the radar's height (held below its first range)
     ),
     # seapick turning its mean lean along the image's wider side (``app.estimators.lean``); not the default yet
-    # seapick triangulating its fixes low over the object at the height the object's size gives; not the default yet
-    "seapick-size": EvalConfig(
-        "seapick-size", "wave", latency_compensation=True, full_frame_detection=False, height_from_size=True
+    # seapick triangulating its fixes low over the object at the radar's last height, held (the default until
+    # 2026-12-01: since then the object's size gives it there)
+    "seapick-held": EvalConfig(
+        "seapick-held", "wave", latency_compensation=True, full_frame_detection=False, height_from_size=False
     ),
     "seapick-lean": EvalConfig(
         "seapick-lean", "wave", latency_compensation=True, full_frame_detection=False, lean_yaw_min_tilt_deg=5.0

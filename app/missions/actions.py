@@ -252,14 +252,27 @@ async def grab(io: MissionIO) -> None:
     sink = SinkTarget(m, io.boundary.telemetry, start_m, p.grab_sink_speed_mps, -p.grab_press_m)
     io.setpoints.engage(sink, allow_below_min=True, keep_integral=True)  # the same object as DESCEND's
     contact = WaterContact(io, now_s)
+    m.grab_gone_blind = False
     while True:  # (polled: the telemetry and the loop clock are what it waits on)
         if io.now_s() - now_s >= p.grab_contact_timeout_s or contact.on_it():
             break
+        if _blind_too_long(m, io.now_s(), p.grab_blind_max_s):
+            m.grab_gone_blind = True  # (``grab_gone_blind``: climb back, no grab)
+            return
         await asyncio.sleep(CONTACT_POLL_S)
     pv = io.boundary.telemetry().pos_vel
     m.on_grab((pv.pos_ned_m[0], pv.pos_ned_m[1]) if pv is not None else m.last_estimate_ne_m or (math.nan, math.nan))
     await io.boundary.grip(True)
     m.gripper_closed_t_s = io.now_s()
+
+
+def _blind_too_long(m: PickupEstimates, t_s: float, limit_s: float | None) -> bool:
+    """Sinking onto the water with the newest fix older than ``limit_s`` (``grab_blind_max_s``): the estimate has
+    been extrapolated that long over orbiting water, and the water met late is met off the object."""
+    if limit_s is None:
+        return False
+    age_s = m.snapshot(t_s).fix_age_s
+    return age_s is None or age_s > limit_s
 
 
 async def start_verify(io: MissionIO) -> None:

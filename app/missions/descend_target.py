@@ -99,6 +99,7 @@ class DescendTarget(ObjectTarget):
         self._fix_seen_s = -math.inf  # … and when it was first seen here
         self._t_s: float | None = None
         model.final_descent_given_up = False
+        model.grab_gone_blind = False  # (set by a GRAB that gave up blind; GRAB comes only from here)
 
     def final_height_now_m(self) -> float:
         return max(self.final_height_m, self.model.sea_level.crest_m() + self.crest_margin_m)

@@ -43,16 +43,23 @@ SIZE_RATIO_RANGE = (1.0 / 3.0, 3.0)  # a size ratio that far off gives no height
 
 
 def sized_height(
-    camera_height_m: float, ratio: float, size_rel_std: float, height_std_m: float, descended_m: float
+    camera_height_m: float,
+    ratio: float,
+    size_rel_std: float,
+    height_std_m: float,
+    descended_m: float,
+    at_most: bool = False,
 ) -> tuple[float, float] | None:
     """The camera's height over the object from its apparent size, and its σ (``height_from_size``), for a fix
     triangulated at ``camera_height_m`` (the radar's last height, held) whose size came out ``ratio`` times the
     expected: when that is more precise than ``height_std_m`` and within ``SIZE_RATIO_RANGE`` of the held height
     carried down by the ``descended_m`` the vehicle came down since (the water under it rises and falls
-    meanwhile: a reference, no more); else None."""
+    meanwhile: a reference, no more); else None. ``at_most``: the reference is only a bound from above (a height
+    the uncertainty allows where the altitude over the mean sea gave none), and the size may give any lower."""
     sized_m, sized_std_m = height_from_size(camera_height_m, ratio, size_rel_std)
     reference_m = camera_height_m - max(0.0, descended_m)
-    plausible = SIZE_RATIO_RANGE[0] <= reference_m / max(sized_m, 1e-6) <= SIZE_RATIO_RANGE[1]
+    times = reference_m / max(sized_m, 1e-6)  # (no more than 3× the reference; and, unless at_most, not under a 3rd)
+    plausible = SIZE_RATIO_RANGE[0] <= times and (at_most or times <= SIZE_RATIO_RANGE[1])
     return (sized_m, sized_std_m) if sized_std_m < height_std_m and plausible else None
 
 

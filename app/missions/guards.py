@@ -211,6 +211,11 @@ def grab_settled(ctx: GuardContext) -> bool:
     return ctx.estimates.progress.get("gripper_closed_for_s", -1.0) >= GRAB_SETTLE_S
 
 
+def grab_gone_blind(ctx: GuardContext) -> bool:
+    """GRAB gave up before the water: its newest fix grew older than ``grab_blind_max_s`` on the way down."""
+    return ctx.estimates.progress.get("grab_gone_blind", 0.0) >= 1.0
+
+
 def _seen_on_sea(ctx: GuardContext) -> bool:
     """Up at the verify height, the camera still fixes the object on the sea: the grab missed it."""
     h = ctx.estimates.height_above_sea_m
@@ -286,6 +291,7 @@ GUARDS: dict[str, Guard] = {
         target_lost_finally,
         touchdown,
         grab_settled,
+        grab_gone_blind,
         grab_failed,
         grab_failed_finally,
         object_in_gripper,

@@ -205,6 +205,13 @@ class MissionParams(BaseModel):
     grab_contact_timeout_s: float = Field(
         3.0, ge=0.1, le=8.0, description="in GRAB, not on the water after this long: close the gripper anyway, s"
     )
+    grab_blind_max_s: float | None = Field(
+        None,
+        ge=0.1,
+        le=10.0,
+        description="in GRAB, not yet on the water and the newest fix older than this: no grab, climb back "
+        "(null: sink on however long it is blind), s",
+    )
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
     size_tolerance: float = Field(
         0.15, ge=0.02, le=1.0, description="apparent size within this of the expected (plus the waves' share)"

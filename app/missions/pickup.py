@@ -129,6 +129,7 @@ class PickupEstimates:
         self._estimate_cache: tuple[tuple[float, int, float], TargetEstimate | None] | None = None
         self.grab_attempts = 0
         self.gripper_closed_t_s: float | None = None  # GRAB closed the gripper then (on the water)
+        self.grab_gone_blind = False  # GRAB gave up: blind too long before the water (``grab_blind_max_s``)
         self.searches_after_loss = 0  # SEARCH begun around the last estimate of an object seen and lost
         self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
         self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
@@ -260,6 +261,12 @@ class PickupEstimates:
             return self._reject("no_state")
         # the sea under the object differs from the height used by up to the waves: σ ≈ half that, along the ray
         height_std_m = height_uncertainty_m / 2.0
+        sized_only = c.height_from_size and not self._radar_live(t_s) and height_m < height_std_m
+        if sized_only:
+            # low over a trough the vehicle is under the mean sea and yet over the water (a buoy seen 0.33 m
+            # under it, 0.05 m "over the mean"): no ray meets a sea at that height — triangulate at one the
+            # uncertainty allows and take the fix only if its size gives the range (``sized_height``)
+            height_m = height_std_m
         fix = triangulate(state, height_m, height_std_m)
         if fix is None:
             return self._reject("no_ray")
@@ -283,7 +290,7 @@ class PickupEstimates:
             held = self.radar_height_at(t_s) is not None  # (else the height is the altitude over the mean sea, now)
             descended_m = (self.over_sea.descended_since_radar_m(t_s) or 0.0) if held else 0.0
             sized_h = sized_height(fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std),
-                                   height_std_m, descended_m)  # fmt: skip
+                                   height_std_m, descended_m, at_most=sized_only)  # fmt: skip
             if sized_h is not None:
                 sized = triangulate(state, height_m + sized_h[0] - fix.camera_height_m, sized_h[1])
         if sized is not None:
@@ -292,6 +299,8 @@ class PickupEstimates:
             # MAVLink pickup, seed 1: the last 0.9 s blind, 0.15 m off)
             fix = sized
             self.sized_fixes += 1
+        elif sized_only:
+            return self._reject("no_ray")
         elif not abs(ratio - 1.0) <= tolerance:
             return self._reject("size")
         obs = fix.observation
@@ -379,6 +388,7 @@ class PickupEstimates:
             "picked_up": 1.0 if self.picked_up else 0.0,
             "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
             "final_descent_given_up": 1.0 if self.final_descent_given_up else 0.0,
+            "grab_gone_blind": 1.0 if self.grab_gone_blind else 0.0,
         }
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,

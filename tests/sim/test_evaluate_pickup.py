@@ -294,17 +294,19 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
     lean = base.model_copy(update=mission_params(sc, CONFIGS["seapick-lean"]))
     assert seapick.lean_yaw_min_tilt_deg is None and thesis.lean_yaw_min_tilt_deg is None  # the heading held
     assert lean.lean_yaw_min_tilt_deg == 5.0 and lean.target_filter == seapick.target_filter
-    # low down, seapick-size's fixes take the height from the object's size; the others' the radar's (held)
-    sized = base.model_copy(update=mission_params(sc, CONFIGS["seapick-size"]))
+    # low down, seapick's fixes take the height from the object's size (the mission's default); the thesis's and
+    # seapick-held's the radar's (held)
+    held = base.model_copy(update=mission_params(sc, CONFIGS["seapick-held"]))
     from app.flight import build_mission_model
     from app.settings import Settings
 
     table = load_mission("pickup")
     checks = {
         name: build_mission_model(table.model_copy(update={"params": params}), Settings()).checks.height_from_size
-        for name, params in [("thesis", thesis), ("seapick", seapick), ("seapick-size", sized), ("seapick-lean", lean)]
+        for name, params in [("thesis", thesis), ("seapick", seapick), ("seapick-held", held), ("seapick-lean", lean)]
     }
-    assert checks == {"thesis": False, "seapick": False, "seapick-size": True, "seapick-lean": False}
+    assert checks == {"thesis": False, "seapick": True, "seapick-held": False, "seapick-lean": True}
+    assert seapick.fix_height_from_size == base.fix_height_from_size  # seapick flies the mission's defaults
     # seapick-wide's wave filter has two oscillators more, for the short waves (at 2.8 and 3.4·ω_p); a glassy sea
     # has none
     wide = make_target_filter(base.model_copy(update=mission_params(sc, CONFIGS["seapick-wide"])))

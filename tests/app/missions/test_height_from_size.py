@@ -137,3 +137,35 @@ def test_a_nested_marker_seen_whole_far_below_the_held_radar_height_is_sized_not
     assert held_m.rejected.get("size", 0) == 1 and len(held) == 7
     assert sized_m.rejected.get("size", 0) == 0 and sized_m.sized_fixes >= 6 and len(sized) == 8
     assert max(sized) < 0.02
+
+
+@pytest.mark.parametrize("height_from_size", [False, True])
+def test_low_over_a_trough_under_the_mean_sea_the_size_still_fixes_the_object(height_from_size):
+    """Over a trough the vehicle may be under the mean sea and yet over the water: here 0.1 m under it, the object
+    0.45 m under it, no radar height (below its first range). No ray meets a sea above the camera — the
+    altitude over the mean sea gives no fix (refused: ``no_ray``; a buoy seen 0.33 m under a sea-state-3
+    vehicle was). With ``height_from_size`` the fix is triangulated at a height the uncertainty allows and its
+    size gives the range: fixes on the object."""
+    checks = FixChecks(
+        marker_size_m=0.30, height_uncertainty_m=0.25, height_from_size=height_from_size, home_above_sea_m=0.0
+    )
+    m = PickupEstimates(
+        SeaPlaneTriangulator.from_settings(CAM), make_target_filter(MissionParams(target_filter="wave")), checks
+    )
+    camera = GeometricCamera(CAM, marker_size_m=0.025, pixel_noise_std_px=0.5, seed=3)
+    obj, down_m, roll = (0.05, -0.03, 0.45), 0.1, math.radians(5.0)
+    for k in range(8):
+        t_s = 0.066 * k
+        m.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, down_m), (0.0, 0.0, 0.0)))
+        m.on_vehicle_sample(AttitudeEuler(t_s, roll, 0.0, 0.0))
+        f = camera.frame(t_s, (0.0, 0.0, down_m), roll, 0.0, 0.0, obj)
+        assert f.visible
+        m.on_marker(t_s, f.corners_px, 0.025)
+    errors = [math.hypot(n_m - obj[0], e_m - obj[1]) for _, n_m, e_m, _ in m.fix_log]
+    print(f"{m.rejected}, sized {m.sized_fixes}, fused {m.fixes}, errors {[round(e, 4) for e in errors]}")
+    assert m.height_at(0.0)[0] < 0.0  # the altitude over the mean sea: under it
+    if not height_from_size:
+        assert m.rejected == {"no_ray": 8} and m.fixes == 0
+    else:
+        assert m.rejected.get("no_ray", 0) == 0 and m.sized_fixes == 8 and m.fixes >= 5  # (the first confirm)
+        assert max(errors) < 0.02

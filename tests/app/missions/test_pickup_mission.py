@@ -201,6 +201,46 @@ async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks
     assert flight.result.outcome == "picked_up" and world.outcome.caught
 
 
+@pytest.mark.looptime(noop_cycles=2)
+async def test_grab_blind_too_long_before_the_water_climbs_back_without_closing_the_gripper():
+    """The camera goes blind as GRAB begins its sink (here from 1 m over the sea, ``touchdown_height_m``, so that
+    the sink takes longer than ``grab_blind_max_s``): once the newest fix is older than that, before the water, it
+    gives the grab up — back to TRACK, the gripper left open — and, seeing again, descends once more and picks
+    the object up. Judged from the simulator's side: no grab (gripper closed) while blind, no contact with the
+    water, and the vehicle climbed back."""
+    settings = load_settings()
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
+    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
+    world = PickupWorld(vehicle, scenario, settings)
+    runners, blind = [], {}
+
+    async def blind_in_grab():
+        while not runners or runners[0].state != "GRAB":  # noqa: ASYNC110
+            await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
+        blind["t_s"], blind["before"] = asyncio.get_running_loop().time(), len(runners[0].states_visited)
+        world.camera_blind = True
+        await asyncio.sleep(2.0)
+        blind["end_s"], blind["states"] = asyncio.get_running_loop().time(), list(runners[0].states_visited)
+        heights = [h for t, h, _, _ in world.samples if t >= blind["t_s"]]
+        blind["lowest_m"], blind["end_m"] = min(heights), heights[-1]
+        world.camera_blind = False
+
+    watcher = asyncio.create_task(blind_in_grab())
+    table = load_mission("pickup")
+    table = table.model_copy(update={"params": table.params.model_copy(update={"touchdown_height_m": 1.0})})
+    flight = await fly_mission(
+        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
+    )
+    watcher.cancel()
+    grabs = world.outcome.grabs
+    print(blind, flight.result.states_visited, grabs)
+    assert blind["states"][blind["before"] - 1 : blind["before"] + 1] == ["GRAB", "TRACK"]  # gave the grab up
+    assert blind["lowest_m"] > 0.05 and blind["end_m"] > blind["lowest_m"] + 0.3  # stopped over the water, climbing
+    assert all(g["t_s"] > blind["end_s"] for g in grabs)  # the gripper never closed while blind
+    assert all(c["t_s"] > blind["end_s"] for c in world.outcome.contacts)  # nor did it touch the water
+    assert flight.result.outcome == "picked_up" and world.outcome.caught and flight.figures["retries"] == 0
+
+
 @pytest.mark.parametrize(("seed", "kind"), [(1, "marker"), (2, "marker"), (3, "marker"), (1, "buoy"), (2, "buoy")])
 @pytest.mark.looptime(noop_cycles=2)
 async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_waves(seed, kind):
