@@ -164,39 +164,48 @@ async def test_after_the_last_retry_it_comes_home_empty_and_says_so():
     assert not world.vehicle.truth().armed  # landed at home
 
 
-@pytest.mark.looptime(noop_cycles=2)
-async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks_up():
-    """The marker vanishes for 3 s when the vehicle is 1.5 m over the sea in DESCEND: no more descending, back
-    to TRACK (climbing; after 2 s without a fix TRACK gives it up to SEARCH), and once it is seen again the
-    descent starts over."""
+async def fly_blinded(state: str, max_height_m: float, blind_s: float, **params):
+    """The calm-sea pickup (seed 1) with the camera blind for ``blind_s`` from the moment the mission is in
+    ``state`` with the vehicle at most ``max_height_m`` over the sea. Returns the flight, the world and what the
+    blind spell saw: its start ``t_s`` and end ``end_s``, the states visited before it (``before``, a count) and by
+    its end (``states``), the heights over the sea through it (``heights_m``, the simulator's truth)."""
     settings = load_settings()
     scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
     vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
     world = PickupWorld(vehicle, scenario, settings)
     runners, blind = [], {}
 
-    async def blind_low_in_descend():
-        while not runners or runners[0].state != "DESCEND" or world.samples[-1][1] > 1.5:  # noqa: ASYNC110
+    async def blind_spell():
+        while not runners or runners[0].state != state or world.samples[-1][1] > max_height_m:  # noqa: ASYNC110
             await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
-        blind["t_s"], blind["height_m"] = asyncio.get_running_loop().time(), world.samples[-1][1]
-        blind["before"] = len(runners[0].states_visited)
+        blind["t_s"], blind["before"] = asyncio.get_running_loop().time(), len(runners[0].states_visited)
         world.camera_blind = True
-        await asyncio.sleep(3.0)
-        blind["states"] = list(runners[0].states_visited)
-        blind["max_height_m"] = max(h for t, h, _, _ in world.samples if t >= blind["t_s"])
+        await asyncio.sleep(blind_s)
+        blind["end_s"], blind["states"] = asyncio.get_running_loop().time(), list(runners[0].states_visited)
+        blind["heights_m"] = [h for t, h, _, _ in world.samples if t >= blind["t_s"]]
         world.camera_blind = False
 
-    watcher = asyncio.create_task(blind_low_in_descend())
+    watcher = asyncio.create_task(blind_spell())
+    table = load_mission("pickup")
+    table = table.model_copy(update={"params": table.params.model_copy(update=params)})
     flight = await fly_mission(
-        vehicle, load_mission("pickup"), settings, LoopClock(), EventLog(None),
-        on_start=runners.append, sensors=[world.sensors],
-    )  # fmt: skip
+        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
+    )
     watcher.cancel()
+    print(blind["states"], flight.result.states_visited, world.outcome.grabs)
+    return flight, world, blind
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_target_lost_low_in_descend_climbs_back_reacquires_and_still_picks_up():
+    """The marker vanishes for 3 s when the vehicle is 1.5 m over the sea in DESCEND: no more descending, back
+    to TRACK (climbing; after 2 s without a fix TRACK gives it up to SEARCH), and once it is seen again the
+    descent starts over."""
+    flight, world, blind = await fly_blinded("DESCEND", 1.5, 3.0)
     visited = flight.result.states_visited
-    print(blind, visited, world.outcome.grabs)
     p = load_mission("pickup").params
     assert blind["states"][blind["before"] - 1 : blind["before"] + 1] == ["DESCEND", "TRACK"]  # lost → TRACK
-    assert blind["max_height_m"] >= p.safety_height_m  # it climbed back to the safety height
+    assert max(blind["heights_m"]) >= p.safety_height_m  # it climbed back to the safety height
     assert visited[visited.index("TRACK") + 1 :].count("DESCEND") >= 2  # a second descent after re-acquiring
     assert flight.result.outcome == "picked_up" and world.outcome.caught
 
@@ -208,35 +217,11 @@ async def test_grab_blind_too_long_before_the_water_climbs_back_without_closing_
     gives the grab up — back to TRACK, the gripper left open — and, seeing again, descends once more and picks
     the object up. Judged from the simulator's side: no grab (gripper closed) while blind, no contact with the
     water, and the vehicle climbed back."""
-    settings = load_settings()
-    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1)
-    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
-    world = PickupWorld(vehicle, scenario, settings)
-    runners, blind = [], {}
-
-    async def blind_in_grab():
-        while not runners or runners[0].state != "GRAB":  # noqa: ASYNC110
-            await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
-        blind["t_s"], blind["before"] = asyncio.get_running_loop().time(), len(runners[0].states_visited)
-        world.camera_blind = True
-        await asyncio.sleep(2.0)
-        blind["end_s"], blind["states"] = asyncio.get_running_loop().time(), list(runners[0].states_visited)
-        heights = [h for t, h, _, _ in world.samples if t >= blind["t_s"]]
-        blind["lowest_m"], blind["end_m"] = min(heights), heights[-1]
-        world.camera_blind = False
-
-    watcher = asyncio.create_task(blind_in_grab())
-    table = load_mission("pickup")
-    table = table.model_copy(update={"params": table.params.model_copy(update={"touchdown_height_m": 1.0})})
-    flight = await fly_mission(
-        vehicle, table, settings, LoopClock(), EventLog(None), on_start=runners.append, sensors=[world.sensors]
-    )
-    watcher.cancel()
-    grabs = world.outcome.grabs
-    print(blind, flight.result.states_visited, grabs)
+    flight, world, blind = await fly_blinded("GRAB", math.inf, 2.0, touchdown_height_m=1.0)
     assert blind["states"][blind["before"] - 1 : blind["before"] + 1] == ["GRAB", "TRACK"]  # gave the grab up
-    assert blind["lowest_m"] > 0.05 and blind["end_m"] > blind["lowest_m"] + 0.3  # stopped over the water, climbing
-    assert all(g["t_s"] > blind["end_s"] for g in grabs)  # the gripper never closed while blind
+    lowest_m, end_m = min(blind["heights_m"]), blind["heights_m"][-1]
+    assert lowest_m > 0.05 and end_m > lowest_m + 0.3  # stopped over the water, climbing
+    assert all(g["t_s"] > blind["end_s"] for g in world.outcome.grabs)  # the gripper never closed while blind
     assert all(c["t_s"] > blind["end_s"] for c in world.outcome.contacts)  # nor did it touch the water
     assert flight.result.outcome == "picked_up" and world.outcome.caught and flight.figures["retries"] == 0
 
