@@ -9,7 +9,7 @@ Inputs arrive from the sensor tasks, each stamped with the time it was *measured
 
 A detection becomes a fix only if it passes, in order (each rejection counted by reason):
 1. the vehicle state at the capture time is in the history, and a fresh radar height exists;
-2. the ray meets the sea (``SeaPlaneTriangulator``);
+2. the ray meets the sea (``SeaPlaneTriangulator``; 2 and 3: ``fix_checks.checked_fix``);
 3. **size**: the marker's (buoy's) apparent size matches its known physical size at that range: √(measured area /
    expected area) within ``1 ± (size_tolerance + height_uncertainty_m / h)``, the expected area that of a
    level square of its edge at the fix, on the undistorted image plane (``apparent_size_ratio``: lens
@@ -22,7 +22,9 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    ``height_from_size`` (the pickup's default), a detection where the radar measures no sea now (below its first
    range, low over the object: its last height, held while the vehicle comes down, was 0.26 m high at 0.31 m and
    put fixes 6–7 cm off) is triangulated again at the height its apparent size gives, when that is the surer and
-   plausible (``fix_checks.sized_height``) — and is then not held to the size check against the held height;
+   plausible (``fix_checks.sized_height``) — and is then not held to the size check against the held height. Low
+   over a trough the vehicle may be under the mean sea and yet over the water: no ray meets a sea above the
+   camera, and such a detection is a fix only if its size gives the range;
 4. **confirmation**: before the filter holds a lock, ``confirm_frames`` fixes within ``confirm_window_s``
    must agree within ``confirm_radius_m``, and they must be at least ``confirm_fraction`` of the frames of that
    window (M of N, as a radar tracker confirms a track); only then is the filter started (with the newest).
@@ -61,7 +63,7 @@ from app.messages import (
     VehicleStateNed,
 )
 from app.missions.estimates import Estimates, SensorHealth
-from app.missions.fix_checks import FixChecks, LockConfirmation, sized_height
+from app.missions.fix_checks import FixChecks, LockConfirmation, checked_fix
 from app.missions.vehicle_over_sea import VehicleOverSea
 
 if TYPE_CHECKING:
@@ -259,50 +261,18 @@ class PickupEstimates:
         state = self.state_at(t_s)
         if state is None:
             return self._reject("no_state")
-        # the sea under the object differs from the height used by up to the waves: σ ≈ half that, along the ray
-        height_std_m = height_uncertainty_m / 2.0
-        sized_only = c.height_from_size and not self._radar_live(t_s) and height_m < height_std_m
-        if sized_only:
-            # low over a trough the vehicle is under the mean sea and yet over the water (a buoy seen 0.33 m
-            # under it, 0.05 m "over the mean"): no ray meets a sea at that height — triangulate at one the
-            # uncertainty allows and take the fix only if its size gives the range (``sized_height``)
-            height_m = height_std_m
-        fix = triangulate(state, height_m, height_std_m)
-        if fix is None:
-            return self._reject("no_ray")
-        if c.wave_slope > 0.0 and self._radar_live(t_s):
-            # … but by no more than the sea's slope over the distance from the radar's spot to the object: right
-            # over the object (descending) the radar measures the sea the object floats on, and a fix whose
-            # covariance still carried the whole wave height would be trusted ten times too little (only while
-            # it measures the sea now: its last height, carried down below its first range, is as uncertain as
-            # the water's rise and fall since — trusted as a live one, such fixes put the estimate 0.23 m off)
-            p, o = state.pos_ned_m, fix.observation.pos_ned_m
-            local_std_m = max(c.radar_height_std_m, c.wave_slope * math.hypot(o[0] - p[0], o[1] - p[1]))
-            if local_std_m < height_std_m:
-                fix = triangulate(state, height_m, local_std_m) or fix
-                height_std_m = local_std_m
-        tolerance = c.size_tolerance + height_uncertainty_m / max(fix.camera_height_m, 0.1)
-        ratio = size_ratio(fix)
-        sized = None
-        if c.height_from_size and not self._radar_live(t_s):
-            # where the radar measures no sea now — below its first range (its last height, held while the vehicle
-            # comes down, was 0.26 m high at 0.31 m) — the size may tell the range better (``sized_height``)
-            held = self.radar_height_at(t_s) is not None  # (else the height is the altitude over the mean sea, now)
-            descended_m = (self.over_sea.descended_since_radar_m(t_s) or 0.0) if held else 0.0
-            sized_h = sized_height(fix.camera_height_m, ratio, math.hypot(size_rel_std, c.size_model_rel_std),
-                                   height_std_m, descended_m, at_most=sized_only)  # fmt: skip
-            if sized_h is not None:
-                sized = triangulate(state, height_m + sized_h[0] - fix.camera_height_m, sized_h[1])
-        if sized is not None:
-            # … and then the size is what is checked against the ratio range, not against that held height: a
-            # nested marker seen whole at 0.2 m was 2.6-5.9 times the area the held height gave, and refused (the
-            # MAVLink pickup, seed 1: the last 0.9 s blind, 0.15 m off)
-            fix = sized
-            self.sized_fixes += 1
-        elif sized_only:
-            return self._reject("no_ray")
-        elif not abs(ratio - 1.0) <= tolerance:
-            return self._reject("size")
+        live = self._radar_live(t_s)
+        held = not live and self.radar_height_at(t_s) is not None  # (else the altitude over the mean sea, now)
+
+        def descended_m() -> float:
+            return (self.over_sea.descended_since_radar_m(t_s) or 0.0) if held else 0.0
+
+        fix, sized = checked_fix(
+            c, triangulate, size_ratio, size_rel_std, state, height_m, height_uncertainty_m, live, descended_m
+        )
+        if isinstance(fix, str):
+            return self._reject(fix)
+        self.sized_fixes += sized
         obs = fix.observation
         n_m, e_m = obs.pos_ned_m[0], obs.pos_ned_m[1]
         g, d = self.grab_ne_m, self.drifted(t_s)
