@@ -93,12 +93,12 @@ CONFIGS: dict[str, EvalConfig] = {
         innovation_gate=False,
         height_from_size=False,  # the radar's height (held below its first range)
     ),
-    # seapick turning its mean lean along the image's wider side (``app.estimators.lean``); not the default yet
     # seapick triangulating its fixes low over the object at the radar's last height, held (the default until
     # 2026-12-01: since then the object's size gives it there)
     "seapick-held": EvalConfig(
         "seapick-held", "wave", latency_compensation=True, full_frame_detection=False, height_from_size=False
     ),
+    # seapick turning its mean lean along the image's wider side (``app.estimators.lean``); not the default yet
     "seapick-lean": EvalConfig(
         "seapick-lean", "wave", latency_compensation=True, full_frame_detection=False, lean_yaw_min_tilt_deg=5.0
     ),

@@ -271,7 +271,7 @@ def _blind_too_long(m: PickupEstimates, t_s: float, limit_s: float | None) -> bo
     been extrapolated that long over orbiting water, and the water met late is met off the object."""
     if limit_s is None:
         return False
-    age_s = m.snapshot(t_s).fix_age_s
+    age_s = m.fix_age_s(t_s)
     return age_s is None or age_s > limit_s
 
 

@@ -332,6 +332,12 @@ class PickupEstimates:
         timed out too: a missed object drifts on, with the current and pushed off by the rotors' wash)."""
         return self.filter.drifted(t_s)
 
+    def fix_age_s(self, t_s: float) -> float | None:
+        """How old the newest fused fix is at ``t_s``; None without one or once the filter's lock timed out."""
+        if self._last_fix_t_s is None or self.estimate(t_s) is None:
+            return None
+        return t_s - self._last_fix_t_s
+
     def snapshot(self, t_s: float) -> Estimates:
         est = self.estimate(t_s)
         sigma_m = None
@@ -368,7 +374,7 @@ class PickupEstimates:
             t_s,
             target=est.as_target() if est is not None else None,
             target_cov_ne_m2=est.cov_ne_m2 if est is not None else None,
-            fix_age_s=None if self._last_fix_t_s is None or est is None else t_s - self._last_fix_t_s,
+            fix_age_s=self.fix_age_s(t_s),
             converged_for_s=None if self._converged_since_s is None else t_s - self._converged_since_s,
             height_above_sea_m=self.height_above_sea_m(t_s),
             height_over_mean_sea_m=self.height_over_mean_sea_m(t_s),
