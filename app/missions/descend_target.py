@@ -13,6 +13,10 @@ from app.missions.pickup import PickupEstimates
 from app.missions.pickup_targets import ObjectTarget, Telemetry
 
 FIX_TIME_TOLERANCE_S = 1e-6  # a fix's time read back as now − its age: the same fix within rounding
+# The radar saw the water closer than the crest clearance and then nothing: the crest rose into its first range
+# (0.4 m), closer still. For this long after that close height, it is taken as the water's (at most) and keeps
+# lifting the vehicle: dropping the lift there let a waiting vehicle sink back into the crest (README, *Evaluating*).
+CLOSE_WATER_HOLD_S = 1.0
 
 
 class DescendTarget(ObjectTarget):
@@ -98,6 +102,7 @@ class DescendTarget(ObjectTarget):
         self._fix_t_s: float | None = None  # the newest fix (its capture time) …
         self._fix_seen_s = -math.inf  # … and when it was first seen here
         self._t_s: float | None = None
+        self._close_water: tuple[float, float] | None = None  # (t_s, m): the radar's newest height under the clearance
         model.final_descent_given_up = False
         model.grab_gone_blind = False  # (set by a GRAB that gave up blind; GRAB comes only from here)
 
@@ -163,7 +168,7 @@ class DescendTarget(ObjectTarget):
         # runs in process: 3 touchdowns over 0.10 m off, 8 before, 5 with it from the final height only) — but not
         # over a fast drift, where its tilt swings took the object out of a leaning vehicle's view (README)
         precise = good and self._drift_mps(t_s) <= self.precise_max_drift_mps
-        return self._aim(t_s, self._clear_of_crests(self.height_m, vehicle_m, snap.height_above_sea_m), precise)
+        return self._aim(t_s, self._clear_of_crests(t_s, self.height_m, vehicle_m, snap.height_above_sea_m), precise)
 
     def _pausing(self, t_s: float, snap: Estimates) -> bool:
         """Going down in the final part, not committed to the blind last part, ``blind_pause_s`` without a new fix,
@@ -198,10 +203,15 @@ class DescendTarget(ObjectTarget):
         drifted = self.model.drifted(t_s)
         return math.inf if drifted is None else math.hypot(*drifted[1])
 
-    def _clear_of_crests(self, height_m: float, vehicle_m: float | None, radar_m: float | None) -> float:
+    def _clear_of_crests(self, t_s: float, height_m: float, vehicle_m: float | None, radar_m: float | None) -> float:
         """The height to aim at this tick: ``height_m``, raised while the vehicle is not going down onto the object
         and the radar sees the water under it closer than ``crest_clearance_m`` (a crest rising under it lifts it;
-        the next tick aims at ``height_m`` again)."""
+        the next tick aims at ``height_m`` again). The radar seeing nothing within ``CLOSE_WATER_HOLD_S`` of such a
+        close height means the crest came closer than its first range: that height stands in for the water's."""
+        if radar_m is not None:
+            self._close_water = (t_s, radar_m) if radar_m < self.crest_clearance_m else None
+        elif self._close_water is not None and t_s - self._close_water[0] <= CLOSE_WATER_HOLD_S:
+            radar_m = self._close_water[1]
         if self.plunging or radar_m is None or vehicle_m is None or radar_m >= self.crest_clearance_m:
             return height_m
         return max(height_m, vehicle_m + self.crest_clearance_m - radar_m)

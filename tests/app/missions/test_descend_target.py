@@ -299,6 +299,43 @@ def test_a_crest_rising_under_a_vehicle_waiting_for_the_final_part_lifts_it_and_
     assert state is not None and -state.pos_ned_m[2] == pytest.approx(final_m)
 
 
+def test_a_crest_that_rises_into_the_radars_first_range_keeps_lifting_a_waiting_vehicle_for_a_while():
+    """The radar sees nothing closer than its first range (0.4 m): a crest rising that close under a waiting
+    vehicle makes it go silent. That silence right after a close height keeps the lift (the height last seen
+    stands in for the water's), for ``CLOSE_WATER_HOLD_S``; silence with no close height before it lifts nothing."""
+    scene = Scene(crest_m=0.7)
+    target = descend(scene, crest_clearance_m=0.8)
+    scene.vehicle_ne = (0.15, 0.0)  # not over the object: it waits at the final height
+    t_s = fly(target, scene, 100.0, 10.0)
+    final_m = target.final_height_now_m()
+    scene.radar_m = 0.5
+    state = target.target_at(t_s + DT)
+    assert state is not None and -state.pos_ned_m[2] == pytest.approx(final_m + 0.3)
+    scene.radar_m = None  # the crest is inside the first range now
+    lifted = []
+    for k in range(2, round(1.5 / DT)):
+        scene.vehicle_height_m = final_m + 0.1 * k * DT  # climbing (slower than asked)
+        state = target.target_at(t_s + k * DT)
+        assert state is not None
+        lifted.append((k * DT, -state.pos_ned_m[2] - scene.vehicle_height_m))
+    assert all(lead == pytest.approx(0.3) for dt_s, lead in lifted if dt_s <= 1.0)  # still 0.3 m over the vehicle
+    assert all(lead < 0.0 for dt_s, lead in lifted if dt_s > 1.0 + DT)  # then the final height again (under it)
+    assert target.height_m == final_m
+
+
+def test_radar_silence_without_a_close_height_before_it_lifts_nothing():
+    scene = Scene(crest_m=0.7)
+    target = descend(scene, crest_clearance_m=0.8)
+    scene.vehicle_ne = (0.15, 0.0)
+    t_s = fly(target, scene, 100.0, 10.0)
+    final_m = target.final_height_now_m()
+    scene.radar_m = 1.0  # the water well clear under it, then nothing (a radar dropping out, not a crest)
+    target.target_at(t_s + DT)
+    scene.radar_m = None
+    state = target.target_at(t_s + 2 * DT)
+    assert state is not None and -state.pos_ned_m[2] == pytest.approx(final_m)
+
+
 def test_going_down_onto_the_object_the_water_close_under_it_does_not_lift_it():
     scene = Scene(crest_m=0.2)
     target = descend(scene, crest_clearance_m=0.8)
