@@ -302,7 +302,7 @@ def test_a_crest_rising_under_a_vehicle_waiting_for_the_final_part_lifts_it_and_
 def test_a_crest_that_rises_into_the_radars_first_range_keeps_lifting_a_waiting_vehicle_for_a_while():
     """The radar sees nothing closer than its first range (0.4 m): a crest rising that close under a waiting
     vehicle makes it go silent. That silence right after a close height keeps the lift (the height last seen
-    stands in for the water's), for ``CLOSE_WATER_HOLD_S``; silence with no close height before it lifts nothing."""
+    stands in for the water's) for ``CLOSE_WATER_HOLD_S``, then the aim is the final height again."""
     scene = Scene(crest_m=0.7)
     target = descend(scene, crest_clearance_m=0.8)
     scene.vehicle_ne = (0.15, 0.0)  # not over the object: it waits at the final height
