@@ -32,6 +32,10 @@ class Clock(Protocol):
 class LoopClock:
     """The running asyncio loop's clock (virtual under looptime)."""
 
+    # How long one synchronous step of work on the loop may take, in this clock's time: under virtual time work
+    # takes none. The setpoint loop keeps this much clear before its tick (``SetpointLoop.make_room``).
+    work_margin_s = 0.0
+
     def now_s(self) -> float:
         return asyncio.get_running_loop().time()
 
@@ -55,6 +59,10 @@ class PreciseClock(LoopClock):
     no timerfd, it sleeps as ``LoopClock`` does. Not for virtual time: under looptime the loop's time is not
     the kernel's.
     """
+
+    # The estimator's update on a fix took p95 2.2, p99 2.7, max 4.3 ms in a demo flight (both cores busy with the
+    # simulator): started closer than this to the setpoint tick, it waits until the tick has run.
+    work_margin_s = 0.005
 
     def __init__(self) -> None:
         self._pending: list[tuple[float, int, asyncio.Future[None]]] = []

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import math
 import signal
 from collections.abc import Callable, Coroutine, Sequence
@@ -181,7 +182,11 @@ async def fly_mission(
     table = resolved
     boundary, setpoints, runner = build_flight(vehicle, table, settings, clock, events)
     bridge = MissionBridge(ground, runner, clock, events) if ground is not None else None
-    feeds = PickupFeeds(model=runner.mission if isinstance(runner.mission, PickupEstimates) else None)
+    margin_s = float(getattr(clock, "work_margin_s", 0.0))
+    feeds = PickupFeeds(
+        model=runner.mission if isinstance(runner.mission, PickupEstimates) else None,
+        make_room=functools.partial(setpoints.make_room, margin_s),
+    )
     if on_start is not None:
         on_start(runner)
     loop = asyncio.get_running_loop()

@@ -13,7 +13,7 @@ import asyncio
 import contextlib
 import os
 import threading
-from collections.abc import Callable, Coroutine
+from collections.abc import Awaitable, Callable, Coroutine
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -61,11 +61,24 @@ class HeightSample:
     height_m: float | None
 
 
+async def _no_wait() -> None:
+    return None
+
+
 class PickupFeeds:
-    def __init__(self, maxsize: int = QUEUE_SIZE, model: PickupEstimates | None = None) -> None:
+    """The pickup's queues, and the estimator's two consumers of them. ``make_room`` is awaited before each
+    update (the setpoint loop's: an update does not start just before its tick, ``SetpointLoop.make_room``)."""
+
+    def __init__(
+        self,
+        maxsize: int = QUEUE_SIZE,
+        model: PickupEstimates | None = None,
+        make_room: Callable[[], Awaitable[None]] = _no_wait,
+    ) -> None:
         self.frames: LatestQueue[CameraObservation] = LatestQueue(maxsize)
         self.heights: LatestQueue[HeightSample] = LatestQueue(maxsize)
         self.model = model
+        self._make_room = make_room
 
     def set_radar_calibrator(self, calibrator: RadarCalibrator) -> None:
         """The radar producer offers its background capture to the mission's CALIBRATE_RADAR."""
@@ -75,6 +88,7 @@ class PickupFeeds:
     async def consume_frames(self, model: PickupEstimates) -> None:
         while True:
             obs = await self.frames.get()
+            await self._make_room()
             if obs.corners_px is not None:
                 model.on_marker(obs.t_s, obs.corners_px, obs.size_m)
             elif obs.center_px is not None and obs.diameter_px is not None:
@@ -85,6 +99,7 @@ class PickupFeeds:
     async def consume_heights(self, model: PickupEstimates) -> None:
         while True:
             h = await self.heights.get()
+            await self._make_room()
             if h.height_m is None:
                 model.on_radar_lost()
             else:

@@ -11,10 +11,15 @@ Modes:
 - ``OFF``: sends nothing.
 Everything goes out through ``VehicleBoundary`` (authority, envelope, finiteness, watchdog); every
 decision is written to the event log.
+
+The tick comes first on the event loop: other work there (the estimator's update on a new fix) asks
+``make_room(work_s)`` before it starts and, when the next tick is due sooner than that, runs after it — one
+synchronous update started 1 ms before the tick delays it by the update's length (real flights: 2–4 ms).
 """
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections import deque
 from enum import StrEnum
@@ -97,6 +102,9 @@ class SetpointLoop:
         self.sent = 0
         self._last_send_s: float | None = None
         self.send_intervals_s: deque[float] = deque(maxlen=100_000)  # between guidance setpoints
+        self.wake_late_s: deque[float] = deque(maxlen=100_000)  # each guidance tick: how late it woke
+        self._next_tick_s: float | None = None  # while running: when the next tick is due
+        self._tick_waiters: list[asyncio.Future[None]] = []  # ``make_room`` callers waiting for that tick
 
     @property
     def period_s(self) -> float:
@@ -147,13 +155,42 @@ class SetpointLoop:
 
     async def run(self) -> None:
         next_s = self._clock.now_s()
-        while True:
-            next_s += self._period_s
-            now_s = self._clock.now_s()
-            if next_s < now_s:  # fell behind (slow send): skip, never burst
-                next_s = now_s + self._period_s
-            await self.tick(now_s)
-            await sleep_until(self._clock, next_s)
+        try:
+            while True:
+                due_s, next_s = next_s, next_s + self._period_s
+                now_s = self._clock.now_s()
+                if next_s < now_s:  # fell behind (slow send): skip, never burst
+                    next_s = now_s + self._period_s
+                if self.mode == LoopMode.GUIDE:
+                    self.wake_late_s.append(max(0.0, now_s - due_s))
+                await self.tick(now_s)
+                self._next_tick_s = next_s
+                self._release_waiters()
+                await sleep_until(self._clock, next_s)
+        finally:
+            self._next_tick_s = None
+            self._release_waiters()
+
+    async def make_room(self, work_s: float) -> None:
+        """Return when ``work_s`` of synchronous work on the event loop would not delay the next tick: at once
+        when the tick is further away than that (or the loop is not running, or ``work_s`` is 0, as in virtual
+        time, where work takes none), else once that tick has run (at most one period on)."""
+        next_s = self._next_tick_s
+        if work_s <= 0.0 or next_s is None or next_s - self._clock.now_s() > work_s:
+            return
+        waiter = asyncio.get_running_loop().create_future()
+        self._tick_waiters.append(waiter)
+        try:
+            async with asyncio.timeout(self._period_s + work_s):
+                await waiter
+        except TimeoutError:
+            pass
+
+    def _release_waiters(self) -> None:
+        waiters, self._tick_waiters = self._tick_waiters, []
+        for w in waiters:
+            if not w.done():
+                w.set_result(None)
 
     async def tick(self, now_s: float) -> None:
         if self.mode == LoopMode.GUIDE and self._boundary.accepts_guidance:
@@ -282,4 +319,6 @@ class SetpointLoop:
             "setpoint_interval_p95_s": percentile(xs, 0.95),
             "setpoint_interval_p99_s": percentile(xs, 0.99),
             "setpoint_interval_max_s": xs[-1] if xs else None,
+            "setpoint_wake_late_p99_s": percentile(sorted(self.wake_late_s), 0.99),
+            "setpoint_wake_late_max_s": max(self.wake_late_s, default=None),
         }
