@@ -26,6 +26,7 @@ from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
 from sim.pickup_scenarios import CONFIGS, CV_TUNED_Q, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
 from sim.pickup_world import CONTACT_M, GRIP_REACH_M, PickupScenario, PickupWorld
+from sim.touchdown_breakdown import breakdown
 from sim.wind import WindConfig
 from tests.mcaputil import PICKUP_TOPICS, check_run_mcap
 
@@ -98,6 +99,22 @@ def test_every_run_has_a_run_mcap_that_reads_back_channel_by_channel(evaluation)
             [x for x in (run_dir / "events.jsonl").read_text().splitlines() if '"kind":"state"' in x]
         )
         assert f"runs/{r['config']}/{r['run']:04d}/run.mcap" in index
+
+
+def test_a_picked_up_runs_grabs_break_down_into_tracking_and_estimate_error(evaluation):
+    """``sim.touchdown_breakdown`` on a real run directory: a line per grab, the caught one's touchdown error is the
+    result line's, and the gripper closed on a fix at most ``grab_blind_max_s`` (0.8 s) old plus a frame or two."""
+    picked = [r for r in evaluation["results"] if r["config"] == "seapick" and r["outcome"] == "picked_up"]
+    assert picked
+    for r in picked:
+        grabs = breakdown(evaluation["out"] / "runs" / r["config"] / f"{r['run']:04d}")
+        print(r["run"], grabs)
+        assert len(grabs) == r["grabs"]
+        assert r["touchdown_error_m"] in [pytest.approx(g.touchdown_error_m, abs=1e-4) for g in grabs]
+        for g in grabs:
+            assert g.blind_s is not None and 0.0 <= g.blind_s <= 1.0
+            assert 0.0 <= g.record_lead_s <= 0.3
+            assert 0.0 <= g.tracking_error_m < 1.0 and 0.0 <= g.estimate_error_m < 1.0
 
 
 def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
