@@ -1,7 +1,7 @@
 """The circle mission end to end: the real CLI, real MAVSDK, real UDP, the simulated PX4 autopilot.
 
 These run in real time (about a minute and a half each for a whole mission). The three flights are started
-together (``flights``): each keeps about a third of one core busy (app and simulator: 26.6 s of CPU in a 96 s
+together (``flights``): each keeps ~0.28 of one core busy (app and simulator: 26.6 s of CPU in a 96 s
 flight), so on two cores together they take the time of one — and fly under the others' load.
 """
 
