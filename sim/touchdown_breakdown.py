@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from app.cli import OneLineParser, run_cli
+from app.report import read_jsonl
 
 PICKUP_MAX_LEAD_S = 0.3  # the pickup record used is at most this long before the grab (its period is 0.2 s)
 
@@ -42,11 +43,6 @@ class GrabBreakdown:
     tracking_error_m: float  # |vehicle_est − estimate| at the record
     estimate_error_m: float  # |estimate − offset − object_true| at the record
     estimate_error_at_last_fix_m: float | None  # the same at the last record up to the last fused fix
-
-
-def _jsonl(path: Path) -> list[dict[str, Any]]:
-    with path.open() as f:
-        return [json.loads(line) for line in f if line.strip()]
 
 
 def _track(rows: list[dict[str, Any]], event: str, boot_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -74,8 +70,8 @@ def _errors(
 
 def breakdown(run_dir: Path) -> list[GrabBreakdown]:
     """One ``GrabBreakdown`` per grab of the run that has a pickup record with an estimate just before it."""
-    state = _jsonl(run_dir / "sim_state.jsonl")
-    events = _jsonl(run_dir / "events.jsonl")
+    state = list(read_jsonl(run_dir / "sim_state.jsonl"))  # (a last line cut off by a crash is skipped)
+    events = list(read_jsonl(run_dir / "events.jsonl"))
     start = next((r for r in state if r.get("event") == "start"), {})
     boot_s = float(start.get("boot_monotonic_s") or 0.0)
     vehicle, obj = _track(state, "truth", boot_s), _track(state, "object", boot_s)
