@@ -98,6 +98,7 @@ def build_flight(
             comp.precise_transient_distance_m,
             g.separate_vertical,
             comp.precise_velocity_lead_s,
+            g.precise_velocity_error_max_mps,
         ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

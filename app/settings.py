@@ -139,6 +139,13 @@ class GuidanceSettings(_Model):
     velocity_error_max_mps: float = Field(
         1.0, ge=0.0, le=5.0, description="bound of the velocity-error feedback ‖K_v (v_sp − v̂)‖, m/s"
     )
+    precise_velocity_error_max_mps: float | None = Field(
+        None,
+        ge=0.0,
+        le=5.0,
+        description="that bound where the mission follows its target tightly (the pickup going down onto the "
+        "object); unset: velocity_error_max_mps, m/s",
+    )
     px4: AutopilotCompensation = Field(
         default_factory=lambda: AutopilotCompensation(
             integral_gain_per_s2=3.0,

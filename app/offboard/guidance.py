@@ -29,7 +29,9 @@ Two more terms live in the setpoint loop, which sees the telemetry stream (``app
   autopilot steers its velocity *estimate* to the setpoint, so when the estimate is off (PX4 SIH: 0.2 m/s
   RMS) the reported position moves at v_sp + d̂;
 - horizontal velocity-error feedback v_sp + K_v (v_sp − v̂) (its norm ≤ ``velocity_error_max_mps``, so an
-  approach does not become more aggressive than guidance + 1 m/s) for autopilots whose offboard velocity control
+  approach does not become more aggressive than guidance + 1 m/s; for a target that asks to be followed tightly
+  ``precise_velocity_error_max_mps``: low over the object the vehicle swings around it at ~1 Hz with setpoints of
+  ±2 m/s, and a 1 m/s bound clipped the feedback that damps the swing) for autopilots whose offboard velocity control
   is a velocity loop only (PX4): it stiffens that loop from outside (PX4's default MPC_XY_VEL_P_ACC 1.8
   leaves a gust's velocity error standing for a second, and 20–30 % of a step for seconds). ArduCopter
   integrates velocity setpoints into a position target of its own, so there K_v = 0 (feedback would fight
@@ -70,16 +72,20 @@ class ConstantBearingParams:
     precise_transient_distance_m: float | None = None  # Δ_p̃ for a target that asks to be followed tightly (None: Δ_p̃)
     separate_vertical: bool = False  # the law on the horizontal and the vertical error apart (False: thesis, 3-D)
     precise_velocity_lead_s: float | None = None  # τ_lead for a target that asks to be followed tightly (None: τ_lead)
+    # ‖K_v (v_sp − v̂)‖'s bound for a target that asks to be followed tightly (None: velocity_error_max_mps)
+    precise_velocity_error_max_mps: float | None = None
 
     def for_target(self, precise: bool) -> ConstantBearingParams:
-        """These params, with the precise Δ_p̃ and τ_lead for a target that asks for it."""
+        """These params, with the precise Δ_p̃, τ_lead and velocity-error bound for a target that asks for it."""
         if not precise:
             return self
         delta_m, lead_s = self.precise_transient_distance_m, self.precise_velocity_lead_s
+        bound_mps = self.precise_velocity_error_max_mps
         return replace(
             self,
             transient_distance_m=self.transient_distance_m if delta_m is None else delta_m,
             velocity_lead_s=self.velocity_lead_s if lead_s is None else lead_s,
+            velocity_error_max_mps=self.velocity_error_max_mps if bound_mps is None else bound_mps,
         )
 
 

@@ -249,20 +249,15 @@ class SetpointLoop:
         )
         pos_err = sub(pos_now, target.pos_ned_m)
         self._last_err_m = norm(pos_err)
-        desired = constant_bearing_velocity(
-            pos_now,
-            target.pos_ned_m,
-            target.vel_ned_mps,
-            self._guidance.for_target(target.precise),
-            target.acc_ned_mps2,
-        )
+        params = self._guidance.for_target(target.precise)
+        desired = constant_bearing_velocity(pos_now, target.pos_ned_m, target.vel_ned_mps, params, target.acc_ned_mps2)
         v_i = self._integrate(now_s, self._hold if why == "hold" else source, pos_err)
         d = self.inconsistency_ned_mps
         vn, ve, vd = desired[0] + v_i[0] - d[0], desired[1] + v_i[1] - d[1], desired[2] + v_i[2] - d[2]
         # Horizontal velocity-error feedback: v_sp + K_v (v_sp − v̂), its norm bounded (see guidance).
-        kv, v = self._guidance.velocity_error_gain, pv.vel_ned_mps
+        kv, v = params.velocity_error_gain, pv.vel_ned_mps
         fn, fe = kv * (vn - v[0]), kv * (ve - v[1])
-        f_max, f = self._guidance.velocity_error_max_mps, math.hypot(fn, fe)
+        f_max, f = params.velocity_error_max_mps, math.hypot(fn, fe)
         if f > f_max:
             fn, fe = fn * f_max / f, fe * f_max / f
         return (vn + fn, ve + fe, vd), why

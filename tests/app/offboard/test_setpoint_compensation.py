@@ -140,6 +140,23 @@ async def test_velocity_error_feedback_is_horizontal_and_bounded():
     assert boundary.sent[-1] == pytest.approx((0.6, -0.8, 0.0))  # ‖2·(3, −4)‖ = 10 → bounded to 1 m/s
 
 
+@pytest.mark.parametrize(("precise", "sent"), [(False, (0.6, -0.8, 0.0)), (True, (1.8, -2.4, 0.0))])
+async def test_a_precise_target_gets_the_precise_velocity_error_bound(precise, sent):
+    """The same velocity error as above (‖2·(3, −4)‖ = 10 m/s): bounded to 1 m/s, or to 3 m/s when the target
+    asks for precision (going down onto the object the 1 m/s bound clipped the feedback in the descent's swing)."""
+    loop, clock, boundary = make_loop(
+        velocity_error_gain=2.0, velocity_error_max_mps=1.0, precise_velocity_error_max_mps=3.0
+    )
+
+    class Precise(Follow):
+        def target_at(self, t_s):
+            return TargetState(t_s, self.b.sample.pos_ned_m, (0.0, 0.0, 0.0), precise=precise)
+
+    loop.engage(Precise(boundary))
+    await run_ticks(loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, s.pos_ned_m, (-3.0, 4.0, 0.0)))
+    assert boundary.sent[-1] == pytest.approx(sent)
+
+
 @pytest.mark.parametrize(("precise", "north_mps"), [(False, 0.4851), (True, 0.7428)])
 async def test_a_precise_target_gets_the_precise_transient_distance(precise, north_mps):
     """0.1 m short of a still target: κ = U·0.1/√(0.1² + Δ²) with Δ 0.4 m, or 0.25 m when the target asks for
