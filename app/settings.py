@@ -106,6 +106,13 @@ class AutopilotCompensation(_Model):
         description="τ_lead where the mission follows its target tightly (the object's wave orbit, faster than what "
         "the lead is set for); unset: this autopilot's τ_lead, s",
     )
+    precise_damping_s: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="τ_d where the mission follows its target tightly: guidance acts on the horizontal position "
+        "error predicted τ_d ahead at the relative velocity (damping of gain U_a,max/Δ·τ_d); 0: none, s",
+    )
     autopilot_params: dict[ParamName, Annotated[float, Field(allow_inf_nan=False)]] = Field(
         default_factory=dict,
         description="float parameters set on the autopilot (PARAM_SET) once it is ready, before arming; "

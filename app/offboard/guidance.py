@@ -14,6 +14,13 @@ the precise Δ_p̃ and τ_lead where they are set (``for_target``): the object's
 motions the lead is set for, and on PX4 the 0.7 s lead left the vehicle a median 0.05 m behind the estimate low
 over the object (0.4 s with Δ 0.2 m: 0.02 m; sea state 2, 40 runs in process).
 
+Optional damping (off when ``damping_s`` = 0; for a precise target ``precise_damping_s``): the law acts on the
+horizontal error predicted τ_d ahead at the relative velocity, p̃ + τ_d (v − v_t), i.e. a derivative term of gain
+(U_a,max/Δ)·τ_d near the target. Near the target the loop is ë·τ' + ė + (U_a,max/Δ)·e = 0 with τ' the velocity
+response's time constant (PX4's, quickened by K_v): at 10 1/s and τ' ≈ 0.2 s its damping ratio is ~0.35, and with
+the loop's delays PX4's descent swung around the object at ~1 Hz (roll/pitch ±20–35°). τ_d adds
+(U_a,max/Δ)·τ_d to the ė term: 0.1 s doubles the damping ratio.
+
 Optional integral action (off when ``integral_gain_per_s2`` = 0): real autopilots do not deliver the
 velocity they are sent. PX4's velocity PID leaves 20–30 % of a step missing for seconds (its slow integrator
 mode) and its estimate carries a slowly varying velocity error and a vertical bias, so a proportional
@@ -74,6 +81,9 @@ class ConstantBearingParams:
     precise_velocity_lead_s: float | None = None  # τ_lead for a target that asks to be followed tightly (None: τ_lead)
     # ‖K_v (v_sp − v̂)‖'s bound for a target that asks to be followed tightly (None: velocity_error_max_mps)
     precise_velocity_error_max_mps: float | None = None
+    # τ_d for a target that asks to be followed tightly: the horizontal p̃ predicted τ_d ahead, p̃ + τ_d (v − v_t)
+    precise_damping_s: float = 0.0
+    damping_s: float = 0.0  # τ_d for every other target (0: none)
 
     def for_target(self, precise: bool) -> ConstantBearingParams:
         """These params, with the precise Δ_p̃, τ_lead and velocity-error bound for a target that asks for it."""
@@ -86,6 +96,7 @@ class ConstantBearingParams:
             transient_distance_m=self.transient_distance_m if delta_m is None else delta_m,
             velocity_lead_s=self.velocity_lead_s if lead_s is None else lead_s,
             velocity_error_max_mps=self.velocity_error_max_mps if bound_mps is None else bound_mps,
+            damping_s=self.precise_damping_s,
         )
 
 
@@ -103,8 +114,16 @@ def constant_bearing_velocity(
     target_vel_ned_mps: Vec3,
     params: ConstantBearingParams,
     target_acc_ned_mps2: Vec3 = (0.0, 0.0, 0.0),
+    vel_ned_mps: Vec3 | None = None,
 ) -> Vec3:
     """Desired vehicle velocity (NED, m/s) toward a target moving at ``target_vel_ned_mps``."""
+    # p̃ = p − p_t, horizontally predicted τ_d ahead at the relative velocity: p̃ + τ_d (v − v_t)
+    tau_d = params.damping_s if vel_ned_mps is not None else 0.0
+    p_err = (
+        pos_ned_m[0] - target_pos_ned_m[0] + (tau_d * (vel_ned_mps[0] - target_vel_ned_mps[0]) if tau_d else 0.0),
+        pos_ned_m[1] - target_pos_ned_m[1] + (tau_d * (vel_ned_mps[1] - target_vel_ned_mps[1]) if tau_d else 0.0),
+        pos_ned_m[2] - target_pos_ned_m[2],
+    )
     lead = params.velocity_lead_s
     if lead:
         # v_t + τ_lead·a_t
@@ -113,12 +132,6 @@ def constant_bearing_velocity(
             target_vel_ned_mps[1] + lead * target_acc_ned_mps2[1],
             target_vel_ned_mps[2] + lead * target_acc_ned_mps2[2],
         )
-    # p̃ = p − p_t
-    p_err = (
-        pos_ned_m[0] - target_pos_ned_m[0],
-        pos_ned_m[1] - target_pos_ned_m[1],
-        pos_ned_m[2] - target_pos_ned_m[2],
-    )
     if params.separate_vertical:
         v_a = (*approach_velocity(p_err[:2], params), *approach_velocity(p_err[2:], params))
     else:

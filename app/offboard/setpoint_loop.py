@@ -250,7 +250,9 @@ class SetpointLoop:
         pos_err = sub(pos_now, target.pos_ned_m)
         self._last_err_m = norm(pos_err)
         params = self._guidance.for_target(target.precise)
-        desired = constant_bearing_velocity(pos_now, target.pos_ned_m, target.vel_ned_mps, params, target.acc_ned_mps2)
+        desired = constant_bearing_velocity(
+            pos_now, target.pos_ned_m, target.vel_ned_mps, params, target.acc_ned_mps2, pv.vel_ned_mps
+        )
         v_i = self._integrate(now_s, self._hold if why == "hold" else source, pos_err)
         d = self.inconsistency_ned_mps
         vn, ve, vd = desired[0] + v_i[0] - d[0], desired[1] + v_i[1] - d[1], desired[2] + v_i[2] - d[2]

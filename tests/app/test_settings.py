@@ -75,6 +75,7 @@ def test_default_profile_carries_the_thesis_radar_settings():
             "guidance.px4.precise_transient_distance_m",
             "allowed 0.01..20.0 m",
         ),
+        ("guidance:\n  px4:\n    precise_damping_s: 1.5\n", "guidance.px4.precise_damping_s", "allowed 0.0..1.0 s"),
         # A key given twice (YAML would keep the last silently), at any depth:
         ("guidance:\n  exit_zero_s: 0.5\n  exit_zero_s: 5.0\n", "guidance.exit_zero_s", "line 3, first at line 2"),
         ("radar: {}\nradar: {tx_power: 1}\n", "radar", "duplicate key (line 2, first at line 1)"),

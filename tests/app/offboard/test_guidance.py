@@ -52,6 +52,32 @@ def test_lead_adds_tau_times_target_acceleration_to_the_feedforward():
     assert constant_bearing_velocity((0, 0, 0), (0, 0, 0), (1.0, 0, 0), P, (0, -0.25, 0)) == (1.0, 0, 0)
 
 
+def test_damping_acts_on_the_horizontal_error_predicted_tau_d_ahead():
+    """τ_d = 0.1 s: 0.1 m north of a still target and closing at 0.5 m/s, the error the law sees is
+    0.1 − 0.1·0.5 = 0.05 m; the vertical error is left as it is; a vehicle moving with the target is not damped."""
+    damped = ConstantBearingParams(2.0, 0.4, separate_vertical=True, damping_s=0.1)
+    v = constant_bearing_velocity(
+        (0.1, 0.0, -4.0), (0.0, 0.0, -5.0), (0.0, 0.0, 0.0), damped, vel_ned_mps=(-0.5, 0.0, 0.8)
+    )
+    assert v[0] == pytest.approx(-2.0 * 0.05 / math.hypot(0.05, 0.4), rel=1e-12)
+    assert v[1] == 0.0 and v[2] == pytest.approx(-2.0 / math.hypot(1.0, 0.4), rel=1e-12)
+    moving = constant_bearing_velocity(
+        (0.1, 0.0, -5.0), (0.0, 0.0, -5.0), (0.3, -0.2, 0.0), damped, vel_ned_mps=(0.3, -0.2, 0.0)
+    )
+    assert moving[0] == pytest.approx(0.3 - 2.0 * 0.1 / math.hypot(0.1, 0.4), rel=1e-12)
+    # Without the vehicle's velocity, or with τ_d = 0, the law is the plain one.
+    plain = ConstantBearingParams(2.0, 0.4, separate_vertical=True)
+    assert constant_bearing_velocity((0.1, 0.0, -5.0), (0.0, 0.0, -5.0), (0.0, 0.0, 0.0), damped) == pytest.approx(
+        constant_bearing_velocity((0.1, 0.0, -5.0), (0.0, 0.0, -5.0), (0.0, 0.0, 0.0), plain, vel_ned_mps=(-0.5, 0, 0))
+    )
+
+
+def test_only_a_precise_target_gets_the_precise_damping():
+    params = ConstantBearingParams(2.0, 0.4, precise_damping_s=0.1)
+    assert params.damping_s == 0.0 and params.for_target(False).damping_s == 0.0
+    assert params.for_target(True).damping_s == 0.1
+
+
 # ---- integral action on the position error (issue 10) ---------------------------------------------------
 
 from app.offboard.guidance import PositionIntegral  # noqa: E402

@@ -174,6 +174,23 @@ async def test_a_precise_target_gets_the_precise_transient_distance(precise, nor
     assert boundary.sent[-1][0] == pytest.approx(north_mps, abs=1e-4) and boundary.sent[-1][1:] == (0.0, 0.0)
 
 
+@pytest.mark.parametrize(("precise", "north_mps"), [(False, -0.4851), (True, -0.2481)])
+async def test_a_precise_target_is_damped_by_the_vehicle_velocity(precise, north_mps):
+    """0.1 m north of a still target, closing at 0.5 m/s: Δ 0.4 m gives κ = 2·0.1/√(0.1² + 0.4²); a precise target
+    with τ_d 0.1 s sees the error 0.05 m ahead (2·0.05/√(0.05² + 0.4²)), from the telemetry's velocity."""
+    loop, clock, boundary = make_loop(precise_damping_s=0.1)
+
+    class Precise(Fixed):
+        def target_at(self, t_s):
+            return TargetState(t_s, self.pos, (0.0, 0.0, 0.0), precise=precise)
+
+    loop.engage(Precise((0.0, 0.0, -5.0)))
+    await run_ticks(
+        loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, (0.1, 0.0, -5.0), (-0.5, 0.0, 0.0))
+    )
+    assert boundary.sent[-1][0] == pytest.approx(north_mps, abs=1e-4) and boundary.sent[-1][1:] == (0.0, 0.0)
+
+
 async def test_a_source_following_the_same_target_keeps_the_integral_only_when_asked():
     """GRAB's sink takes over from DESCEND over the same object: with ``keep_integral`` the integral built on the
     standing error carries on; a plain engage (or one from a hold) restarts it at zero."""
