@@ -118,10 +118,14 @@ def constant_bearing_velocity(
 ) -> Vec3:
     """Desired vehicle velocity (NED, m/s) toward a target moving at ``target_vel_ned_mps``."""
     # p̃ = p − p_t, horizontally predicted τ_d ahead at the relative velocity: p̃ + τ_d (v − v_t)
-    tau_d = params.damping_s if vel_ned_mps is not None else 0.0
+    tau_d = params.damping_s
+    ahead_n = ahead_e = 0.0
+    if tau_d and vel_ned_mps is not None:
+        ahead_n = tau_d * (vel_ned_mps[0] - target_vel_ned_mps[0])
+        ahead_e = tau_d * (vel_ned_mps[1] - target_vel_ned_mps[1])
     p_err = (
-        pos_ned_m[0] - target_pos_ned_m[0] + (tau_d * (vel_ned_mps[0] - target_vel_ned_mps[0]) if tau_d else 0.0),
-        pos_ned_m[1] - target_pos_ned_m[1] + (tau_d * (vel_ned_mps[1] - target_vel_ned_mps[1]) if tau_d else 0.0),
+        pos_ned_m[0] - target_pos_ned_m[0] + ahead_n,
+        pos_ned_m[1] - target_pos_ned_m[1] + ahead_e,
         pos_ned_m[2] - target_pos_ned_m[2],
     )
     lead = params.velocity_lead_s
