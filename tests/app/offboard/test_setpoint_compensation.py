@@ -57,11 +57,11 @@ class Follow:
 class Fixed:
     name = "fixed"
 
-    def __init__(self, pos):
-        self.pos = pos
+    def __init__(self, pos, precise=False):
+        self.pos, self.precise = pos, precise
 
     def target_at(self, t_s):
-        return TargetState(t_s, self.pos, (0.0, 0.0, 0.0))
+        return TargetState(t_s, self.pos, (0.0, 0.0, 0.0), precise=self.precise)
 
     def observe(self, sample):
         pass
@@ -162,12 +162,7 @@ async def test_a_precise_target_gets_the_precise_transient_distance(precise, nor
     """0.1 m short of a still target: κ = U·0.1/√(0.1² + Δ²) with Δ 0.4 m, or 0.25 m when the target asks for
     precision (the pickup going down onto the object)."""
     loop, clock, boundary = make_loop(precise_transient_distance_m=0.25)
-
-    class Precise(Fixed):
-        def target_at(self, t_s):
-            return TargetState(t_s, self.pos, (0.0, 0.0, 0.0), precise=precise)
-
-    loop.engage(Precise((0.1, 0.0, -5.0)))
+    loop.engage(Fixed((0.1, 0.0, -5.0), precise))
     await run_ticks(
         loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, (0.0, 0.0, -5.0), (0.0, 0.0, 0.0))
     )
@@ -179,12 +174,7 @@ async def test_a_precise_target_is_damped_by_the_vehicle_velocity(precise, north
     """0.1 m north of a still target, closing at 0.5 m/s: Δ 0.4 m gives κ = 2·0.1/√(0.1² + 0.4²); a precise target
     with τ_d 0.1 s sees the error 0.05 m ahead (2·0.05/√(0.05² + 0.4²)), from the telemetry's velocity."""
     loop, clock, boundary = make_loop(precise_damping_s=0.1)
-
-    class Precise(Fixed):
-        def target_at(self, t_s):
-            return TargetState(t_s, self.pos, (0.0, 0.0, 0.0), precise=precise)
-
-    loop.engage(Precise((0.0, 0.0, -5.0)))
+    loop.engage(Fixed((0.0, 0.0, -5.0), precise))
     await run_ticks(
         loop, clock, boundary, 1, lambda t_s, s: PositionVelocityNed(t_s, (0.1, 0.0, -5.0), (-0.5, 0.0, 0.0))
     )
