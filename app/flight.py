@@ -99,7 +99,7 @@ def build_flight(
             g.separate_vertical,
             comp.precise_velocity_lead_s,
             g.precise_velocity_error_max_mps,
-            comp.precise_damping_s,
+            precise_damping_s=comp.precise_damping_s,
         ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

@@ -81,12 +81,11 @@ class ConstantBearingParams:
     precise_velocity_lead_s: float | None = None  # τ_lead for a target that asks to be followed tightly (None: τ_lead)
     # ‖K_v (v_sp − v̂)‖'s bound for a target that asks to be followed tightly (None: velocity_error_max_mps)
     precise_velocity_error_max_mps: float | None = None
-    # τ_d for a target that asks to be followed tightly: the horizontal p̃ predicted τ_d ahead, p̃ + τ_d (v − v_t)
-    precise_damping_s: float = 0.0
-    damping_s: float = 0.0  # τ_d for every other target (0: none)
+    precise_damping_s: float | None = None  # τ_d for a target that asks to be followed tightly (None: τ_d)
+    damping_s: float = 0.0  # τ_d: guidance on the horizontal p̃ predicted τ_d ahead, p̃ + τ_d (v − v_t), s (0: none)
 
     def for_target(self, precise: bool) -> ConstantBearingParams:
-        """These params, with the precise Δ_p̃, τ_lead and velocity-error bound for a target that asks for it."""
+        """These params, with the precise Δ_p̃, τ_lead, velocity-error bound and τ_d for a target that asks for it."""
         if not precise:
             return self
         delta_m, lead_s = self.precise_transient_distance_m, self.precise_velocity_lead_s
@@ -96,7 +95,7 @@ class ConstantBearingParams:
             transient_distance_m=self.transient_distance_m if delta_m is None else delta_m,
             velocity_lead_s=self.velocity_lead_s if lead_s is None else lead_s,
             velocity_error_max_mps=self.velocity_error_max_mps if bound_mps is None else bound_mps,
-            damping_s=self.precise_damping_s,
+            damping_s=self.damping_s if self.precise_damping_s is None else self.precise_damping_s,
         )
 
 

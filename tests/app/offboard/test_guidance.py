@@ -76,6 +76,8 @@ def test_only_a_precise_target_gets_the_precise_damping():
     params = ConstantBearingParams(2.0, 0.4, precise_damping_s=0.1)
     assert params.damping_s == 0.0 and params.for_target(False).damping_s == 0.0
     assert params.for_target(True).damping_s == 0.1
+    # Unset, a precise target keeps the plain τ_d, as the other precise settings fall back to theirs.
+    assert ConstantBearingParams(2.0, 0.4, damping_s=0.05).for_target(True).damping_s == 0.05
 
 
 # ---- integral action on the position error (issue 10) ---------------------------------------------------
