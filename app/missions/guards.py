@@ -165,8 +165,11 @@ def touchdown(ctx: GuardContext) -> bool:
 
 def touchdown_off_target(ctx: GuardContext) -> bool:
     """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, without one, with
-    a fix older than ``grab_fix_max_age_s``, or after DESCEND gave its final part up (``final_descent_given_up``:
-    it had drifted or gone blind off the object and was climbing back): no grab there — climb back and try again.
+    a fix older than ``grab_fix_max_age_s``, after DESCEND gave its final part up (``final_descent_given_up``:
+    it had drifted or gone blind off the object and was climbing back), or — at the water only by the mean sea,
+    the radar silent and the autopilot not landed — over water the radar last saw falling faster than
+    ``grab_max_fall_mps`` (a deepening trough: GRAB's blind sink chased it for 0.6–0.9 s and met it 0.27–0.33 m
+    off the object): no grab there — climb back and try again.
     The last half metre is flown blind (the camera's view there is smaller than the object's offset plus the tilt),
     but a fix much older than that descent means the object was lost higher up, and the estimate drifts off it by
     decimetres a second."""
@@ -177,6 +180,11 @@ def touchdown_off_target(ctx: GuardContext) -> bool:
         return True
     if e.fix_age_s is None or e.fix_age_s > ctx.params.grab_fix_max_age_s:
         return True
+    max_fall = ctx.params.grab_max_fall_mps
+    landed = ctx.telemetry.landed_state is not None and ctx.telemetry.landed_state.value is LandedState.ON_GROUND
+    if max_fall is not None and e.height_above_sea_m is None and not landed:
+        if e.progress.get("water_falling_mps", -math.inf) > max_fall:
+            return True
     t = e.target
     d = None if t is None else _horizontal_m(ctx, t.pos_ned_m[0], t.pos_ned_m[1])
     return d is None or d > ctx.params.grab_max_offset_m

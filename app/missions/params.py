@@ -177,6 +177,13 @@ class MissionParams(BaseModel):
     grab_max_offset_m: float = Field(
         0.15, ge=0.02, le=2.0, description="at the water farther than this from the estimate: no grab, climb back, m"
     )
+    grab_max_fall_mps: float | None = Field(
+        None,
+        ge=0.0,
+        le=5.0,
+        description="at the water by the mean sea while the water was last seen falling faster than this: no grab, "
+        "climb back, m/s",
+    )
     pickup_time_limit_s: float = Field(
         900.0, ge=60.0, le=7200.0, description="in the air this long without the object: RETURN (battery budget), s"
     )

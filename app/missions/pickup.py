@@ -201,6 +201,9 @@ class PickupEstimates:
     def height_over_mean_sea_m(self, t_s: float) -> float | None:
         return self.over_sea.height_over_mean_sea_m(t_s)
 
+    def water_falling_mps(self, t_s: float) -> float | None:
+        return self.over_sea.water_falling_mps(t_s)
+
     def sea_reference(self, t_s: float) -> tuple[float, float]:
         return self.over_sea.sea_reference(t_s)
 
@@ -366,6 +369,9 @@ class PickupEstimates:
             "final_descent_given_up": 1.0 if self.final_descent_given_up else 0.0,
             "grab_gone_blind": 1.0 if self.grab_gone_blind else 0.0,
         }
+        falling = self.water_falling_mps(t_s)
+        if falling is not None:
+            progress["water_falling_mps"] = falling
         health = SensorHealth(
             camera_frame_age_s=None if self._last_frame_t_s is None else t_s - self._last_frame_t_s,
             radar_lost=self.over_sea.radar_lost,

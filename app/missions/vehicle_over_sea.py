@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 ELEVATION_WINDOW_S = 12.0  # the elevation is measured from the mean sea surface over this long …
 ELEVATION_MIN_SPAN_S = 10.0  # … once samples span this much of it without a gap longer than …
 ELEVATION_MAX_GAP_S = 1.0  # … this
+WATER_FALL_LIVE_S = 0.5  # water_falling_mps: the rate the radar last saw stands this long after its newest height
 
 
 class VehicleOverSea:
@@ -137,6 +138,15 @@ class VehicleOverSea:
         if state is None:
             return None
         return last.down_m + last.rate_mps * (t_s - last.t_s) - state.pos_ned_m[2]
+
+    def water_falling_mps(self, t_s: float) -> float | None:
+        """How fast the water under the vehicle fell when the radar last saw it (m/s, down positive): its rise
+        rate over the last heights, for ``WATER_FALL_LIVE_S`` after the newest; None before or after that."""
+        last = self.sea_level.last()
+        if last is None or self.radar_lost or not 0.0 <= t_s - last.t_s <= WATER_FALL_LIVE_S:
+            return None
+        rise = self.sea_level.rise_rate_mps(last.t_s)
+        return None if rise is None else -rise
 
     def sea_reference(self, t_s: float) -> tuple[float, float]:
         """Where the mean sea surface is (down, autopilot frame) and its drift: the tracked mean sea while radar

@@ -71,6 +71,32 @@ def test_a_touchdown_a_second_after_the_last_fix_is_no_grab():
     assert not touchdown_off_target(ctx(est(**at_water, fix_age_s=0.6), vehicle_ne=(0.07, 0.064)))
 
 
+def test_at_the_water_by_the_mean_sea_over_water_falling_away_is_no_grab():
+    """Sea state 3, seed 1 runs 69 and 125: the radar went silent 0.5 m over a deepening trough, the mean sea said
+    "at the water", and the blind sink chased the water down for 0.6-0.7 s — meeting it 0.27 and 0.33 m off the
+    object. With ``grab_max_fall_mps`` set, water last seen falling faster than that is no grab: climb back. Only
+    when the mean sea is all there is: not when the radar reads the water, nor once the autopilot says landed."""
+    from app.messages import LandedState, Stamped
+
+    p = PARAMS.model_copy(update={"grab_max_fall_mps": 0.25})
+    at_mean = {"height_above_sea_m": None, "height_over_mean_sea_m": 0.17}
+
+    def judged(params, landed: bool = False, **kw) -> bool:
+        c = ctx(est(**kw))
+        if landed:
+            tel = dataclasses.replace(c.telemetry, landed_state=Stamped(10.0, LandedState.ON_GROUND))
+            c = dataclasses.replace(c, telemetry=tel)
+        return touchdown_off_target(dataclasses.replace(c, params=params))
+
+    assert judged(p, **at_mean, progress={"water_falling_mps": 0.37})
+    assert not judged(p, **at_mean, progress={"water_falling_mps": 0.13})
+    assert not judged(p, **at_mean, progress={"water_falling_mps": -0.3})  # rising: the water comes to it
+    assert not judged(p, **at_mean)  # not known (the radar silent for over half a second)
+    assert not judged(p, height_above_sea_m=0.25, progress={"water_falling_mps": 0.37})  # the radar sees it there
+    assert not judged(p, landed=True, **at_mean, progress={"water_falling_mps": 0.37})  # on it already
+    assert judged(PARAMS, **at_mean, progress={"water_falling_mps": 0.37}) is (PARAMS.grab_max_fall_mps is not None)
+
+
 def test_at_the_water_after_descend_gave_its_final_part_up_is_no_grab():
     """DESCEND had given the final part up (drifted or gone blind off the object) and was climbing back when a
     crest met it: right over the estimate and with a fresh fix, still no grab there."""

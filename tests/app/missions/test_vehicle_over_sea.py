@@ -105,3 +105,36 @@ def test_the_mission_hands_the_elevation_to_the_filter_only_right_over_the_objec
             t_s = round(t_s + 1.0 / 15.0, 6)
         # from 10 s of sea on (ELEVATION_MIN_SPAN_S), 15 a second
         assert f.direction_samples == (pytest.approx(150, abs=2) if handed else 0)
+
+
+def test_the_water_falling_is_the_rate_the_radar_last_saw_and_stands_half_a_second():
+    """A vehicle holding 2 m up over water falling at 0.5 m/s (a trough coming): heights grow 5 cm a frame. When
+    the radar goes silent (the water inside its first range) the rate it last saw stands for
+    ``WATER_FALL_LIVE_S``; then it is unknown. Rising water falls negatively; a lost radar tells nothing."""
+    from app.missions.vehicle_over_sea import WATER_FALL_LIVE_S
+
+    v = over_sea()
+    assert v.water_falling_mps(0.0) is None
+    for k in range(12):
+        t_s = 1.0 + 0.1 * k
+        v.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, -2.0), (0.0, 0.0, 0.0)))
+        v.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+    for k in range(11):
+        v.on_height(1.0 + 0.1 * k, 1.0 + 0.05 * k)  # (the newest waits for the vehicle's sample after it)
+    last = v.sea_level.last()
+    assert last is not None
+    assert v.water_falling_mps(last.t_s) == pytest.approx(0.5, abs=1e-6)
+    assert v.water_falling_mps(last.t_s + WATER_FALL_LIVE_S - 0.01) == pytest.approx(0.5, abs=1e-6)
+    assert v.water_falling_mps(last.t_s + WATER_FALL_LIVE_S + 0.01) is None
+    v.on_radar_lost()
+    assert v.water_falling_mps(last.t_s) is None
+
+    rising = over_sea()
+    for k in range(12):
+        t_s = 1.0 + 0.1 * k
+        rising.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, -2.0), (0.0, 0.0, 0.0)))
+        rising.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+    for k in range(11):
+        rising.on_height(1.0 + 0.1 * k, 1.5 - 0.04 * k)
+    t_last = rising.sea_level.last().t_s  # type: ignore[union-attr]
+    assert rising.water_falling_mps(t_last) == pytest.approx(-0.4, abs=1e-6)
