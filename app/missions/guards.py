@@ -150,11 +150,17 @@ def target_lost_finally(ctx: GuardContext) -> bool:
     return target_lost(ctx) and ctx.estimates.progress.get("searches_after_loss", 0.0) >= ctx.params.search_retries
 
 
+def _landed(ctx: GuardContext) -> bool:
+    """The autopilot says the vehicle is down (on the water)."""
+    ls = ctx.telemetry.landed_state
+    return ls is not None and ls.value is LandedState.ON_GROUND
+
+
 def touchdown(ctx: GuardContext) -> bool:
     """On the water: the radar reads the touchdown height, or the vehicle is that low over the mean sea (under the
     radar's first range it reads nothing), or the autopilot says landed."""
     e, limit_m = ctx.estimates, ctx.params.touchdown_height_m
-    landed = ctx.telemetry.landed_state is not None and ctx.telemetry.landed_state.value is LandedState.ON_GROUND
+    landed = _landed(ctx)
     radar_low = e.height_above_sea_m is not None and e.height_above_sea_m <= limit_m
     # the mean sea only while the radar reads nothing (the sea inside its first range): when it does read the sea,
     # that is where the water is — over a trough the vehicle is still well above it at "0.3 m over the mean"
@@ -181,8 +187,7 @@ def touchdown_off_target(ctx: GuardContext) -> bool:
     if e.fix_age_s is None or e.fix_age_s > ctx.params.grab_fix_max_age_s:
         return True
     max_fall = ctx.params.grab_max_fall_mps
-    landed = ctx.telemetry.landed_state is not None and ctx.telemetry.landed_state.value is LandedState.ON_GROUND
-    if max_fall is not None and e.height_above_sea_m is None and not landed:
+    if max_fall is not None and e.height_above_sea_m is None and not _landed(ctx):
         if e.progress.get("water_falling_mps", -math.inf) > max_fall:
             return True
     t = e.target

@@ -115,12 +115,7 @@ def test_the_water_falling_is_the_rate_the_radar_last_saw_and_stands_half_a_seco
 
     v = over_sea()
     assert v.water_falling_mps(0.0) is None
-    for k in range(12):
-        t_s = 1.0 + 0.1 * k
-        v.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, -2.0), (0.0, 0.0, 0.0)))
-        v.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
-    for k in range(11):
-        v.on_height(1.0 + 0.1 * k, 1.0 + 0.05 * k)  # (the newest waits for the vehicle's sample after it)
+    hovering_over(v, [1.0 + 0.05 * k for k in range(11)])
     last = v.sea_level.last()
     assert last is not None
     assert v.water_falling_mps(last.t_s) == pytest.approx(0.5, abs=1e-6)
@@ -130,11 +125,17 @@ def test_the_water_falling_is_the_rate_the_radar_last_saw_and_stands_half_a_seco
     assert v.water_falling_mps(last.t_s) is None
 
     rising = over_sea()
-    for k in range(12):
-        t_s = 1.0 + 0.1 * k
-        rising.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, -2.0), (0.0, 0.0, 0.0)))
-        rising.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
-    for k in range(11):
-        rising.on_height(1.0 + 0.1 * k, 1.5 - 0.04 * k)
+    hovering_over(rising, [1.5 - 0.04 * k for k in range(11)])
     t_last = rising.sea_level.last().t_s  # type: ignore[union-attr]
     assert rising.water_falling_mps(t_last) == pytest.approx(-0.4, abs=1e-6)
+
+
+def hovering_over(v: VehicleOverSea, heights_m: list[float]) -> None:
+    """The vehicle 2 m up from 1.0 s on, a radar height every 0.1 s (the newest waits for the vehicle's sample
+    after it)."""
+    for k in range(len(heights_m) + 1):
+        t_s = 1.0 + 0.1 * k
+        v.on_vehicle_sample(PositionVelocityNed(t_s, (0.0, 0.0, -2.0), (0.0, 0.0, 0.0)))
+        v.on_vehicle_sample(AttitudeEuler(t_s, 0.0, 0.0, 0.0))
+    for k, h in enumerate(heights_m):
+        v.on_height(1.0 + 0.1 * k, h)
