@@ -17,6 +17,10 @@ class ConfigError(AppError):
         where = f"{source}: {path}" if path else source
         super().__init__(f"{where}: {message}")
 
+    def __reduce__(self) -> tuple[type[ConfigError], tuple[str, str, str]]:
+        # across processes (an evaluation's workers) as it was raised, not as a broken process pool
+        return type(self), (self.source, self.path, self.message)
+
 
 class MissionTableError(ConfigError):
     """Raised when a mission table fails validation at load (before anything connects)."""

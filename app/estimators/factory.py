@@ -20,8 +20,8 @@ WaveOscillators = Literal["standard", "wide"]  # ``OSCILLATOR_BANKS``
 class TargetFilterChoice(Protocol):
     """Which motion model to run: for the wave filter the expected WMO sea state (code 0–5), for the
     constant-velocity filter its process noise (the thesis set Q from configuration parameters); the wave filter's
-    bank of oscillators and whether it reads the sea's elevation (its noise, 0: not); and whether the innovation
-    gate rejects outliers."""
+    bank of oscillators, how fast the drift it learns may change, and whether it reads the sea's elevation (its
+    noise, 0: not); and whether the innovation gate rejects outliers."""
 
     @property
     def target_filter(self) -> TargetFilterKind: ...
@@ -34,6 +34,9 @@ class TargetFilterChoice(Protocol):
 
     @property
     def wave_elevation_std_m(self) -> float: ...
+
+    @property
+    def wave_drift_q_m2ps3(self) -> float: ...
 
     @property
     def cv_q_pos_m2ps(self) -> float: ...
@@ -55,6 +58,7 @@ def make_target_filter(choice: TargetFilterChoice) -> LinearTargetFilter:
         sea.hs_m,
         sea.tp_s,
         OSCILLATOR_BANKS[choice.wave_oscillators],
+        q_current_m2ps3=choice.wave_drift_q_m2ps3,
         innovation_gate=choice.innovation_gate,
         elevation_std_m=elevation_std_m,
     )

@@ -52,6 +52,14 @@ class MissionParams(BaseModel):
         description="wave filter: read the object's orbital velocity from the sea's elevation under the vehicle "
         "(radar), with this noise; 0 = off, m",
     )
+    wave_drift_q_m2ps3: float = Field(
+        1e-6,
+        ge=1e-9,
+        le=0.1,
+        description="wave filter: how fast the object's drift may change (process noise of its mean velocity), "
+        "m²/s³ — the current, and the autopilot's own velocity error, which moves everything the camera fixes "
+        "in its frame",
+    )
     cv_q_pos_m2ps: float = Field(
         0.01, ge=1e-12, le=100.0, description="constant-velocity filter: position process noise per second, m²/s"
     )

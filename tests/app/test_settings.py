@@ -105,3 +105,23 @@ def test_duplicate_state_in_a_mission_is_an_error_naming_it(tmp_path):
     with pytest.raises(ConfigError) as e:
         load_mission(str(f))
     assert e.value.path == "states.PREFLIGHT.transitions[0].to"
+
+
+def test_a_config_error_crosses_to_another_process_as_it_was_raised():
+    """An evaluation's worker that meets a bad file hands the error back whole (it was a broken process pool)."""
+    import pickle
+    from concurrent.futures import ProcessPoolExecutor
+
+    from app.errors import MissionTableError
+
+    with ProcessPoolExecutor(1) as pool:
+        error = pool.submit(_raise_config_error).exception()
+    assert isinstance(error, ConfigError)
+    assert (error.source, error.path, error.message) == ("pickup.yaml", "params.sea_state", "must be 0..5")
+    assert str(error) == "pickup.yaml: params.sea_state: must be 0..5"
+    table = pickle.loads(pickle.dumps(MissionTableError("m.yaml", "states.X", "unknown state")))
+    assert type(table) is MissionTableError and table.path == "states.X"
+
+
+def _raise_config_error() -> None:
+    raise ConfigError("pickup.yaml", "params.sea_state", "must be 0..5")

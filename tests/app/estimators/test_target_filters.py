@@ -295,3 +295,44 @@ def test_the_mission_file_chooses_the_filter():
     wave = make_target_filter(MissionParams(target_filter="wave", sea_state=4))
     assert isinstance(wave, WaveFilter)
     assert np.isclose(wave.omegas, 2 * math.pi / 7.892, rtol=1e-3).any()  # the SS4 peak is in the bank
+
+
+def _ahead_error_p95_m(q_drift_m2ps3: float, vel_error_sigma_mps: float) -> float:
+    """A calm sea (sea state 1) and an object that stays put, fixed at 15 Hz (1 cm noise) in the frame of an
+    autopilot whose velocity error wanders (Gauss–Markov, τ 3.7 s: PX4 SIH's EKF2): p95 of the wave filter's
+    position 0.5 s ahead against where the fixes will put the object then."""
+    from app.estimators.factory import make_target_filter
+    from app.missions.params import MissionParams
+
+    f = make_target_filter(MissionParams(target_filter="wave", sea_state=1, wave_drift_q_m2ps3=q_drift_m2ps3))
+    rng = np.random.default_rng(1)
+    dt, sigma = 1.0 / 15.0, 0.01
+    a = math.exp(-dt / 3.7)
+    v, p, track = np.zeros(2), np.zeros(2), []
+    for _ in range(15 * 90):
+        v = v * a + vel_error_sigma_mps * math.sqrt(1.0 - a * a) * rng.standard_normal(2)
+        p = p + v * dt
+        track.append(p.copy())
+    errors = []
+    for k, (n, e) in enumerate(track):
+        t = k * dt
+        noise_n, noise_e = sigma * rng.standard_normal(2)
+        f.update(fix(t, n + noise_n, e + noise_e, ((sigma**2, 0.0), (0.0, sigma**2))))
+        if t > 20.0 and k + 7 < len(track) and k % 5 == 0:
+            ahead = f.estimate(t + 7 * dt)
+            assert ahead is not None
+            errors.append(math.dist(ahead.pos_ned_m[:2], track[k + 7]))
+    return float(np.percentile(errors, 95))
+
+
+def test_the_mission_sets_how_fast_the_wave_filters_drift_may_change():
+    """``wave_drift_q_m2ps3``: the default (a sea current) against one quick enough for an autopilot's velocity
+    error, with and without that error."""
+    default_wandering, quick_wandering = _ahead_error_p95_m(1e-6, 0.25), _ahead_error_p95_m(1e-3, 0.25)
+    print(f"0.5 s ahead, p95: {default_wandering:.3f} m (default) against {quick_wandering:.3f} m (1e-3)")
+    assert quick_wandering < 0.9 * default_wandering
+    assert _ahead_error_p95_m(1e-6, 0.0) < 0.02  # no velocity error: the default holds a still object to 2 cm
+    from app.missions.params import MissionParams
+
+    with pytest.raises(ValueError, match="wave_drift_q_m2ps3"):
+        MissionParams(wave_drift_q_m2ps3=1.0)
