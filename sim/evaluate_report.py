@@ -21,12 +21,31 @@ def _pct(values: Sequence[float], q: float) -> float | None:
     return round(float(np.percentile(values, q)), 4) if values else None
 
 
+TOUCHDOWN_BY = ("estimator", "profile", "object_kind")  # scenario fields the touchdown error is split by
+
+
+def _touchdown_by(rs: Sequence[dict[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:
+    """Touchdown error p50/p95 (and how many touched down) per value of each of ``TOUCHDOWN_BY``: at a calm sea
+    the autopilot's estimator error, not the sea, makes seapick's tail (README, *Evaluating*)."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for field in TOUCHDOWN_BY:
+        groups: dict[str, list[float]] = {}
+        for r in rs:
+            if r["touchdown_error_m"] is not None and field in r["scenario"]:
+                groups.setdefault(str(r["scenario"][field]), []).append(r["touchdown_error_m"])
+        out[field] = {
+            k: {"touchdowns": len(v), "p50_m": _pct(v, 50), "p95_m": _pct(v, 95)} for k, v in sorted(groups.items())
+        }
+    return out
+
+
 def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict[str, Any]:
     """Per configuration: runs, success rate (picked up by the mission's word *and* the simulator's truth; a
     mission that says picked_up with an empty gripper is a ``false_pickups``), touchdown error p50/p95/max
     (runs that touched down), how high over the water the gripper closed on the catches (p50/p95, and how many
     closed it before the vehicle had touched the water: ``caught_above_water``), time to
-    pickup, off-target touchdowns, envelope and safety violations, aborts by reason, speed-up over real time
+    pickup, off-target touchdowns, envelope and safety violations, aborts by reason, the touchdown error by
+    estimator preset, autopilot and object (``touchdown_by``), speed-up over real time
     (mission time over the runs' own wall time); and ``ratio_p95`` = the first configuration's p95 over the
     second's."""
     out: dict[str, Any] = {"configs": {}}
@@ -63,6 +82,7 @@ def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict
             "outcomes": dict(Counter(r["outcome"] for r in rs).most_common()),
             "aborts_by_reason": dict(Counter(r["abort_reason"] for r in rs if r["abort_reason"]).most_common()),
             "success_by_sea_state": {k: round(sum(v) / len(v), 4) for k, v in sorted(by_sea.items())},
+            "touchdown_by": _touchdown_by(rs),
             "speedup_vs_real_time": round(sum(r["mission_s"] for r in rs) / wall_s, 1) if wall_s > 0 else None,
         }
     out["ratio_p95"] = None
@@ -106,6 +126,10 @@ def table(summary: dict[str, Any]) -> str:
                 f"p95 {_m(c['grab_height_p95_m'])} m; before touching it (> {CONTACT_M:g} m): "
                 f"{c['caught_above_water']} of {c['picked_up']}"
             )
+        for field, groups in c.get("touchdown_by", {}).items():
+            if groups:
+                parts = (f"{k} {_m(g['p50_m'])}/{_m(g['p95_m'])} ({g['touchdowns']})" for k, g in groups.items())
+                rows.append(f"  touchdown p50/p95 m by {field}: " + ", ".join(parts))
         for reason, n in c["aborts_by_reason"].items():
             rows.append(f"  {n:4d}  {reason}")
     return "\n".join(rows)

@@ -136,6 +136,13 @@ def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
         assert c["caught_above_water"] == sum(h > CONTACT_M for h in heights)
         assert c["envelope_violations"] == sum(r["envelope_violations"] for r in rs)
         assert c["speedup_vs_real_time"] > 5.0
+        touched = [r for r in rs if r["touchdown_error_m"] is not None]
+        for field, groups in c["touchdown_by"].items():  # the touchdown error split by the scenario's field
+            assert sum(g["touchdowns"] for g in groups.values()) == len(errs)
+            for value, g in groups.items():
+                mine = [r["touchdown_error_m"] for r in touched if str(r["scenario"][field]) == value]
+                p50, p95 = (round(float(np.percentile(mine, q)), 4) for q in (50, 95))
+                assert g == {"touchdowns": len(mine), "p50_m": p50, "p95_m": p95}
     a, b = doc["configs"]["thesis"]["touchdown_p95_m"], doc["configs"]["seapick"]["touchdown_p95_m"]
     assert doc["ratio_p95"] == (round(a / b, 3) if a is not None and b else None)
 
