@@ -1,15 +1,16 @@
 """``python -m sim.evaluate [--runs N] [--jobs J] [--seed S] [--sea-state N] [--compare A,B] [--json] [--out DIR]
-[--dask ADDRESS] [--run-reports]``: the pickup over many randomised scenarios, in virtual time.
+[--dask ADDRESS] [--run-reports] [--mission FILE]``: the pickup over many randomised scenarios, in virtual time.
 
 ``--runs`` scenarios are drawn from ``--seed`` (``sim.pickup_scenarios``) and each is flown with every
 configuration (``--compare thesis,seapick``; default ``seapick``) — the same scenarios for each — on ``--jobs``
-local processes or on the Dask cluster at ``--dask``. A progress bar goes to stderr; ``DIR`` (default
-``runs/eval-<seed>``) gets ``results.jsonl`` (a line per run, ``sim.evaluate_pickup``), ``summary.json``,
-``report.png`` and ``index.html`` (while it runs, ``results.partial.jsonl`` gets each result as it comes in, so a
-run that dies keeps what it flew). On stdout: the summary table, or with ``--json`` one JSON object, the table
-then going to stderr (per configuration runs, success_rate, touchdown_p50_m, touchdown_p95_m,
-off_target_touchdowns, envelope_violations, speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's
-p95 over the second's).
+local processes or on the Dask cluster at ``--dask``, with the mission ``--mission`` (default the built-in
+``pickup``: a copy of it with other parameters, e.g. for a windy site, flies the same scenarios). A progress bar
+goes to stderr; ``DIR`` (default ``runs/eval-<seed>``) gets ``results.jsonl`` (a line per run,
+``sim.evaluate_pickup``), ``summary.json``, ``report.png`` and ``index.html`` (while it runs,
+``results.partial.jsonl`` gets each result as it comes in, so a run that dies keeps what it flew). On stdout: the
+summary table, or with ``--json`` one JSON object, the table then going to stderr (per configuration runs,
+success_rate, touchdown_p50_m, touchdown_p95_m, off_target_touchdowns, envelope_violations,
+speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's p95 over the second's).
 """
 
 from __future__ import annotations
@@ -56,15 +57,18 @@ def parse_args(argv: list[str] | None) -> Any:
     )
     p.add_argument("--run-reports", action="store_true", help="every run's event log and report.png under DIR/runs/")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument(
+        "--mission", default="pickup", metavar="FILE", help="the mission every run flies (default: the built-in pickup)"
+    )
     return p.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    inputs = RunInputs.load(args.mission)  # once: editing the settings or the mission while it runs changes no run
     out: Path = args.out if args.out is not None else Path("runs") / f"eval-{args.seed}"
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)  # after the mission is read: a bad one leaves nothing behind
     scenarios = sample_scenarios(args.seed, args.runs, args.sea_state)
-    inputs = RunInputs.load()  # once: editing the settings or the mission while it runs changes no run
     jobs: list[Job] = []
     for config in args.compare:
         for i, sc in enumerate(scenarios):
@@ -100,6 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         "wall_s": round(wall_s, 1),
         "jobs": args.jobs,
         "dask": args.dask,
+        "mission": args.mission,
         "native": native_active(),  # this process's simulator modules compiled (``sim.native``): its workers' too
         "out": str(out),
     }

@@ -72,8 +72,9 @@ class RunInputs:
     table: MissionTable
 
     @classmethod
-    def load(cls) -> RunInputs:
-        return cls(load_settings(), load_mission("pickup"))
+    def load(cls, mission: str = "pickup") -> RunInputs:
+        """The settings and ``mission`` (a built-in mission's name or a file: ``resolve_mission_path``)."""
+        return cls(load_settings(), load_mission(mission))
 
 
 def run_pickup(

@@ -56,9 +56,9 @@ class MissionParams(BaseModel):
         1e-6,
         ge=1e-9,
         le=0.1,
-        description="wave filter: how fast the object's drift may change (process noise of its mean velocity), "
-        "m²/s³ — the current, and the autopilot's own velocity error, which moves everything the camera fixes "
-        "in its frame",
+        description="wave filter: how fast the object's drift may change (the current; and the autopilot's own "
+        "velocity error, which moves everything the camera fixes in its frame): its mean velocity's process noise, "
+        "m²/s³",
     )
     cv_q_pos_m2ps: float = Field(
         0.01, ge=1e-12, le=100.0, description="constant-velocity filter: position process noise per second, m²/s"

@@ -182,6 +182,7 @@ def test_a_dask_cluster_gives_the_same_result_per_seed_as_local_processes(evalua
         ("--compare seapick,seapick", "give distinct names"),
         ("--dask nonsense", "argument --dask: 'nonsense' is not a scheduler address"),
         ("--out /proc/seapick/out --runs 1", "/proc/seapick"),
+        ("--mission no-such-mission --runs 1", "no-such-mission: no such mission file; built-in missions:"),
     ],
 )
 def test_bad_options_are_one_line_and_exit_2(args, fragment):
@@ -190,6 +191,40 @@ def test_bad_options_are_one_line_and_exit_2(args, fragment):
     )
     assert done.returncode == 2 and fragment in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and done.stdout == ""
+
+
+def test_a_mission_file_of_ones_own_flies_the_same_scenarios_and_a_bad_one_flies_none(tmp_path, evaluation):
+    """``--mission FILE``: a copy of the pickup asking for an operator's landing authorisation (none comes in an
+    evaluation) flies the scenario the fixture picked up but never comes down; a bad field is one line, names its
+    path, and leaves no output behind."""
+    source = (ROOT / "app/missions/pickup.yaml").read_text()
+    assert "  land_authorization: false" in source
+    mission = tmp_path / "ask-to-land.yaml"
+    mission.write_text(source.replace("  land_authorization: false", "  land_authorization: true", 1))
+    out = tmp_path / "eval"
+    args = ["--runs", "1", "--seed", str(SEED), "--sea-state", str(SEA_STATE), "--no-progress", "--out", str(out)]
+    done = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", *args, "--mission", str(mission), "--jobs", "1", "--json"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (line,) = [json.loads(x) for x in (out / "results.jsonl").read_text().splitlines()]
+    (flown,) = [r for r in evaluation["results"] if r["config"] == "seapick" and r["run"] == 0]
+    assert flown["outcome"] == "picked_up" and line["scenario"] == flown["scenario"]
+    assert line["outcome"] == "failed" and line["touchdown_error_m"] is None and line["grabs"] == 0
+    assert line["abort_reason"].startswith("TRACK→"), line["abort_reason"]
+    assert json.loads(done.stdout)["mission"] == str(mission)
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(source.replace("  wave_drift_q_m2ps3: 1.0e-6", "  wave_drift_q_m2ps3: 5.0", 1))
+    bad_out = tmp_path / "bad-eval"
+    done = subprocess.run(
+        [sys.executable, "-m", "sim.evaluate", "--runs", "1", "--mission", str(bad), "--out", str(bad_out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "params.wave_drift_q_m2ps3" in done.stderr and "0.1" in done.stderr, done.stderr
+    assert not bad_out.exists()
 
 
 def test_the_same_seed_and_index_draw_the_same_scenario_whatever_the_number_of_runs():
