@@ -24,7 +24,7 @@ from app.gcs.config import GcsSettings
 from app.gcs.mission import MissionBridge
 from app.messages import Autopilot
 from app.missions.estimates import MissionModel
-from app.missions.fix_checks import FixChecks
+from app.missions.fix_checks import WATER_FALL_LIVE_PERIODS, FixChecks
 from app.missions.pickup import PickupEstimates
 from app.missions.pickup_feeds import PickupFeeds
 from app.missions.runner import MissionRunner, RunResult, mission_model_for, model_name
@@ -123,16 +123,18 @@ def build_mission_model(table: MissionTable, settings: Settings) -> MissionModel
     if model_name(table) != "pickup":
         return mission_model_for(table)
     p = table.params
+    sea = SEA_STATES[p.sea_state]
     checks = FixChecks(
         marker_size_m=p.marker_size_m,
         buoy_diameter_m=settings.detector.buoy_diameter_m,
         size_tolerance=p.size_tolerance,
         height_from_size=p.fix_height_from_size,
-        height_uncertainty_m=SEA_STATES[p.sea_state].hs_m / 2.0,  # the sea under the radar vs under the object
-        wave_slope=peak_wave_slope(SEA_STATES[p.sea_state].hs_m, SEA_STATES[p.sea_state].tp_s),
+        height_uncertainty_m=sea.hs_m / 2.0,  # the sea under the radar vs under the object
+        wave_slope=peak_wave_slope(sea.hs_m, sea.tp_s),
         confirm_frames=p.confirm_frames,
         confirm_fraction=p.confirm_fraction,
         converged_sigma_m=p.converged_sigma_m,
+        water_fall_live_s=WATER_FALL_LIVE_PERIODS * sea.tp_s,
     )
     tri = SeaPlaneTriangulator.from_settings(
         settings.camera, attitude_std_rad=math.radians(settings.camera.attitude_noise_std_deg)

@@ -31,7 +31,6 @@ if TYPE_CHECKING:
 ELEVATION_WINDOW_S = 12.0  # the elevation is measured from the mean sea surface over this long …
 ELEVATION_MIN_SPAN_S = 10.0  # … once samples span this much of it without a gap longer than …
 ELEVATION_MAX_GAP_S = 1.0  # … this
-WATER_FALL_LIVE_S = 0.5  # water_falling_mps: the rate the radar last saw stands this long after its newest height
 
 
 class VehicleOverSea:
@@ -141,9 +140,10 @@ class VehicleOverSea:
 
     def water_falling_mps(self, t_s: float) -> float | None:
         """How fast the water under the vehicle fell when the radar last saw it (m/s, down positive): its rise
-        rate over the last heights, for ``WATER_FALL_LIVE_S`` after the newest; None before or after that."""
+        rate over the last heights, for ``FixChecks.water_fall_live_s`` after the newest; None before or after
+        that."""
         last = self.sea_level.last()
-        if last is None or self.radar_lost or not 0.0 <= t_s - last.t_s <= WATER_FALL_LIVE_S:
+        if last is None or self.radar_lost or not 0.0 <= t_s - last.t_s <= self.checks.water_fall_live_s:
             return None
         rise = self.sea_level.rise_rate_mps(last.t_s)
         return None if rise is None else -rise

@@ -91,7 +91,7 @@ def test_at_the_water_by_the_mean_sea_over_water_falling_away_is_no_grab():
     assert judged(p, **at_mean, progress={"water_falling_mps": 0.37})
     assert not judged(p, **at_mean, progress={"water_falling_mps": 0.13})
     assert not judged(p, **at_mean, progress={"water_falling_mps": -0.3})  # rising: the water comes to it
-    assert not judged(p, **at_mean)  # not known (the radar silent for over half a second)
+    assert not judged(p, **at_mean)  # not known (the radar silent for over a second)
     assert not judged(p, height_above_sea_m=0.25, progress={"water_falling_mps": 0.37})  # the radar sees it there
     assert not judged(p, landed=True, **at_mean, progress={"water_falling_mps": 0.37})  # on it already
     assert judged(PARAMS, **at_mean, progress={"water_falling_mps": 0.37}) is (PARAMS.grab_max_fall_mps is not None)

@@ -5,10 +5,15 @@ from __future__ import annotations
 import pytest
 
 from app.estimators.sea_level import MeanSeaLevel
+from app.estimators.sea_state import SEA_STATES
 from app.estimators.state_history import StateHistory
+from app.flight import build_mission_model
 from app.messages import AttitudeEuler, PositionVelocityNed
 from app.missions.fix_checks import FixChecks
+from app.missions.pickup import PickupEstimates
+from app.missions.table import load_mission
 from app.missions.vehicle_over_sea import VehicleOverSea
+from app.settings import Settings
 
 
 def over_sea() -> VehicleOverSea:
@@ -88,7 +93,6 @@ def test_the_mission_hands_the_elevation_to_the_filter_only_right_over_the_objec
     from app.estimators.triangulation import SeaPlaneTriangulator
     from app.estimators.wave_filter import WaveFilter
     from app.messages import TargetObservation
-    from app.missions.pickup import PickupEstimates
     from app.settings import CameraSettings
 
     for off_m, handed in ((0.3, True), (2.0, False)):
@@ -107,27 +111,48 @@ def test_the_mission_hands_the_elevation_to_the_filter_only_right_over_the_objec
         assert f.direction_samples == (pytest.approx(150, abs=2) if handed else 0)
 
 
-def test_the_water_falling_is_the_rate_the_radar_last_saw_and_stands_half_a_second():
-    """A vehicle holding 2 m up over water falling at 0.5 m/s (a trough coming): heights grow 5 cm a frame. When
-    the radar goes silent (the water inside its first range) the rate it last saw stands for
-    ``WATER_FALL_LIVE_S``; then it is unknown. Rising water falls negatively; a lost radar tells nothing."""
-    from app.missions.vehicle_over_sea import WATER_FALL_LIVE_S
-
-    v = over_sea()
-    assert v.water_falling_mps(0.0) is None
+def over_falling_water(checks: FixChecks) -> tuple[VehicleOverSea, float]:
+    """A vehicle holding 2 m up over water falling at 0.5 m/s (a trough coming): heights grow 5 cm a frame; and
+    the newest height's time."""
+    v = VehicleOverSea(checks, StateHistory(), MeanSeaLevel())
     hovering_over(v, [1.0 + 0.05 * k for k in range(11)])
     last = v.sea_level.last()
     assert last is not None
-    assert v.water_falling_mps(last.t_s) == pytest.approx(0.5, abs=1e-6)
-    assert v.water_falling_mps(last.t_s + WATER_FALL_LIVE_S - 0.01) == pytest.approx(0.5, abs=1e-6)
-    assert v.water_falling_mps(last.t_s + WATER_FALL_LIVE_S + 0.01) is None
+    return v, last.t_s
+
+
+def test_the_water_falling_is_the_rate_the_radar_last_saw_and_stands_a_while():
+    """When the radar goes silent (the water inside its first range) the rate it last saw stands for
+    ``water_fall_live_s``; then it is unknown. Rising water falls negatively; a lost radar tells nothing."""
+    assert over_sea().water_falling_mps(0.0) is None
+    checks = FixChecks()
+    v, t_last = over_falling_water(checks)
+    assert v.water_falling_mps(t_last) == pytest.approx(0.5, abs=1e-6)
+    assert v.water_falling_mps(t_last + checks.water_fall_live_s - 0.01) == pytest.approx(0.5, abs=1e-6)
+    assert v.water_falling_mps(t_last + checks.water_fall_live_s + 0.01) is None
     v.on_radar_lost()
-    assert v.water_falling_mps(last.t_s) is None
+    assert v.water_falling_mps(t_last) is None
 
     rising = over_sea()
     hovering_over(rising, [1.5 - 0.04 * k for k in range(11)])
     t_last = rising.sea_level.last().t_s  # type: ignore[union-attr]
     assert rising.water_falling_mps(t_last) == pytest.approx(-0.4, abs=1e-6)
+
+
+@pytest.mark.parametrize(("sea_state", "stands_at_0_75_s"), [(1, False), (2, False), (3, True), (4, True)])
+def test_the_mission_lets_the_fall_rate_stand_for_a_share_of_the_seas_period(sea_state: int, stands_at_0_75_s: bool):
+    """Water falls for half a wave period. Sea state 3 (Tp 5.6 s), seed 1 run 110: the touchdown by the mean sea
+    came 0.75 s into the radar's silence over a deepening trough, and GRAB's blind sink met the water 0.27-0.33 m
+    off the object — the rate must still stand then. On a sea state 1 ripple (Tp 1.6 s) a fall seen 0.75 s
+    before has turned into a rise (an older rate would refuse good grabs)."""
+    table = load_mission("pickup")
+    table = table.model_copy(update={"params": table.params.model_copy(update={"sea_state": sea_state})})
+    model = build_mission_model(table, Settings())
+    assert isinstance(model, PickupEstimates)
+    live_s = model.checks.water_fall_live_s
+    assert 0.1 * SEA_STATES[sea_state].tp_s < live_s < 0.25 * SEA_STATES[sea_state].tp_s  # well inside the fall
+    v, t_last = over_falling_water(model.checks)
+    assert (v.water_falling_mps(t_last + 0.75) is not None) is stands_at_0_75_s
 
 
 def hovering_over(v: VehicleOverSea, heights_m: list[float]) -> None:
