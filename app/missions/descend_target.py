@@ -125,6 +125,8 @@ class DescendTarget(ObjectTarget):
         final_m = self.final_height_now_m()
         before_m, was_going_down = self.height_m, self.plunging and not self._committed
         if not good:  # climb back to (and wait at) the safety height
+            if self.plunging:  # a final descent turned back (its fix stale): water met on the way up is no
+                self.model.final_descent_given_up = True  # place to grab (the guards), as after going blind
             self.height_m = max(self.height_m, self.safety_height_m)
             self.plunging = False
         elif self.height_m <= final_m:

@@ -283,6 +283,26 @@ def test_going_blind_where_it_cannot_go_on_it_stops_going_down_before_the_gap(ra
     assert target.height_m == target.final_height_now_m() and scene.final_descent_given_up
 
 
+@pytest.mark.parametrize("in_final_part", [True, False])
+def test_a_fix_gone_stale_turns_the_descent_back_and_a_final_one_is_given_up(in_final_part):
+    """A fix older than ``fresh_s`` (0.5 s) ends any descent: back up to the safety height. One that was in its final
+    part, going down onto the object, is given up: water that meets the vehicle on the way back up is no place to
+    grab (``touchdown_off_target``), as after going blind. Seed 3 run 175 (sea state 3): paused blind 0.2 m over
+    the mean sea, its fix went stale just before the blind gap passed, and the crest that met it climbing back was
+    taken for a touchdown: GRAB sank into it 0.39 m off the object. Higher up it only stops going down."""
+    scene = Scene(crest_m=0.2)
+    target = descend(scene)  # no blind gap: only the fix's age turns it back
+    t_s = fly(target, scene, 100.0, 7.0 if in_final_part else 2.0)
+    assert target.plunging is in_final_part and target.height_m < (0.9 if in_final_part else 3.1)
+    scene.last_fix_t_s = t_s  # no fix since
+    t_s = fly(target, scene, t_s, 0.46)
+    assert target.plunging is in_final_part and not scene.final_descent_given_up
+    before_m = target.height_m
+    fly(target, scene, t_s, 0.1)  # now older than fresh_s: up to the safety height, or no lower above it
+    assert not target.plunging and (target.height_m == 2.0 if in_final_part else 2.0 < target.height_m <= before_m)
+    assert scene.final_descent_given_up is in_final_part
+
+
 def test_a_crest_rising_under_a_vehicle_waiting_for_the_final_part_lifts_it_and_then_it_comes_back():
     scene = Scene(crest_m=0.7)
     target = descend(scene, crest_clearance_m=0.8)
