@@ -21,7 +21,8 @@ CLOSE_WATER_HOLD_S = 1.0
 
 class DescendTarget(ObjectTarget):
     """Down at ``speed_mps`` over the object while the fix is fresh and the filter converged; else back up to
-    (and waiting at) ``safety_height_m``.
+    (and waiting at) ``safety_height_m`` — a final descent turned back so is given up (``final_descent_given_up``),
+    as one that went blind or drifted off the object: water met on the way up is no place to grab.
 
     The final part — below ``final_height_m``, raised to clear the highest recent crest by ``crest_margin_m``
     (``MeanSeaLevel.crest_m``: a vehicle waiting lower is met by a crest wherever it is) — is flown only right

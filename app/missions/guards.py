@@ -172,10 +172,10 @@ def touchdown(ctx: GuardContext) -> bool:
 def touchdown_off_target(ctx: GuardContext) -> bool:
     """At the water (``touchdown``) but farther than ``grab_max_offset_m`` from the estimate, without one, with
     a fix older than ``grab_fix_max_age_s``, after DESCEND gave its final part up (``final_descent_given_up``:
-    it had drifted or gone blind off the object and was climbing back), or — at the water only by the mean sea,
-    the radar silent and the autopilot not landed — over water the radar last saw falling faster than
-    ``grab_max_fall_mps`` (a deepening trough: GRAB's blind sink chased it for 0.6–0.9 s and met it 0.27–0.33 m
-    off the object): no grab there — climb back and try again.
+    it had drifted or gone blind off the object, or its fix had gone stale, and was climbing back), or — at the
+    water only by the mean sea, the radar silent and the autopilot not landed — over water the radar last saw
+    falling faster than ``grab_max_fall_mps`` (a deepening trough: GRAB's blind sink chased it for 0.6–0.9 s and
+    met it 0.27–0.33 m off the object): no grab there — climb back and try again.
     The last half metre is flown blind (the camera's view there is smaller than the object's offset plus the tilt),
     but a fix much older than that descent means the object was lost higher up, and the estimate drifts off it by
     decimetres a second."""

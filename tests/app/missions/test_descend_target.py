@@ -287,7 +287,7 @@ def test_going_blind_where_it_cannot_go_on_it_stops_going_down_before_the_gap(ra
 def test_a_fix_gone_stale_turns_the_descent_back_and_a_final_one_is_given_up(in_final_part):
     """A fix older than ``fresh_s`` (0.5 s) ends any descent: back up to the safety height. One that was in its final
     part, going down onto the object, is given up: water that meets the vehicle on the way back up is no place to
-    grab (``touchdown_off_target``), as after going blind. Seed 3 run 175 (sea state 3): paused blind 0.2 m over
+    grab (``touchdown_off_target``), as after going blind. Seed 3 run 175 (sea state 3): paused blind 0.25 m over
     the mean sea, its fix went stale just before the blind gap passed, and the crest that met it climbing back was
     taken for a touchdown: GRAB sank into it 0.39 m off the object. Higher up it only stops going down."""
     scene = Scene(crest_m=0.2)
