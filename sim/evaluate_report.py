@@ -25,17 +25,26 @@ TOUCHDOWN_BY = ("estimator", "profile", "object_kind")  # scenario fields the to
 
 
 def _touchdown_by(rs: Sequence[dict[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:
-    """Touchdown error p50/p95 (and how many touched down) per value of each of ``TOUCHDOWN_BY``: at a calm sea
-    the autopilot's estimator error, not the sea, makes seapick's tail (README, *Evaluating*)."""
+    """Per value of each of ``TOUCHDOWN_BY``: the touchdown error p50/p95 and how many touched down, and the
+    off-target touchdowns of all its runs (a run that never picked up may have met the water off the object). At a
+    calm sea the autopilot's estimator error, not the sea, makes seapick's tail (README, *Evaluating*)."""
     out: dict[str, dict[str, dict[str, Any]]] = {}
     for field in TOUCHDOWN_BY:
-        groups: dict[str, list[float]] = {}
+        groups: dict[str, list[dict[str, Any]]] = {}
         for r in rs:
-            if r["touchdown_error_m"] is not None and field in r["scenario"]:
-                groups.setdefault(str(r["scenario"][field]), []).append(r["touchdown_error_m"])
-        out[field] = {
-            k: {"touchdowns": len(v), "p50_m": _pct(v, 50), "p95_m": _pct(v, 95)} for k, v in sorted(groups.items())
-        }
+            if field in r["scenario"]:
+                groups.setdefault(str(r["scenario"][field]), []).append(r)
+        out[field] = {}
+        for k, runs in sorted(groups.items()):
+            v = [r["touchdown_error_m"] for r in runs if r["touchdown_error_m"] is not None]
+            if not v and not any(r["off_target_touchdowns"] for r in runs):
+                continue  # (as before: a value none of whose runs touched down is not listed)
+            out[field][k] = {
+                "touchdowns": len(v),
+                "p50_m": _pct(v, 50),
+                "p95_m": _pct(v, 95),
+                "off_target_touchdowns": sum(r["off_target_touchdowns"] for r in runs),
+            }
     return out
 
 
@@ -96,6 +105,13 @@ def _m(v: float | None) -> str:
     return "—" if v is None else f"{v:.3f}"
 
 
+def _off(group: dict[str, Any]) -> str:
+    """What follows a group's touchdowns in the table: its off-target touchdowns when it had any (nothing for
+    summaries written before they were counted)."""
+    n = group.get("off_target_touchdowns", 0)
+    return f", {n} off-target" if n else ""
+
+
 def table(summary: dict[str, Any]) -> str:
     cs = summary["configs"]
     rows = [
@@ -128,7 +144,9 @@ def table(summary: dict[str, Any]) -> str:
             )
         for field, groups in c.get("touchdown_by", {}).items():
             if groups:
-                parts = (f"{k} {_m(g['p50_m'])}/{_m(g['p95_m'])} ({g['touchdowns']})" for k, g in groups.items())
+                parts = (
+                    f"{k} {_m(g['p50_m'])}/{_m(g['p95_m'])} ({g['touchdowns']}{_off(g)})" for k, g in groups.items()
+                )
                 rows.append(f"  touchdown p50/p95 m by {field}: " + ", ".join(parts))
         for reason, n in c["aborts_by_reason"].items():
             rows.append(f"  {n:4d}  {reason}")

@@ -21,7 +21,7 @@ from app.missions.pickup_feeds import PickupFeeds
 from app.settings import load_settings
 from sim import evaluate_cli
 from sim.evaluate_pickup import OUTCOMES, mission_params, run_jobs
-from sim.evaluate_report import table
+from sim.evaluate_report import summarise, table
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
 from sim.pickup_scenarios import CONFIGS, CV_TUNED_Q, ESTIMATOR_PRESETS, PROFILES, sample_scenario, sample_scenarios
@@ -136,15 +136,49 @@ def test_the_json_object_is_one_line_and_agrees_with_the_results(evaluation):
         assert c["caught_above_water"] == sum(h > CONTACT_M for h in heights)
         assert c["envelope_violations"] == sum(r["envelope_violations"] for r in rs)
         assert c["speedup_vs_real_time"] > 5.0
-        touched = [r for r in rs if r["touchdown_error_m"] is not None]
         for field, groups in c["touchdown_by"].items():  # the touchdown error split by the scenario's field
             assert sum(g["touchdowns"] for g in groups.values()) == len(errs)
+            assert sum(g["off_target_touchdowns"] for g in groups.values()) == c["off_target_touchdowns"]
             for value, g in groups.items():
-                mine = [r["touchdown_error_m"] for r in touched if str(r["scenario"][field]) == value]
-                p50, p95 = (round(float(np.percentile(mine, q)), 4) for q in (50, 95))
-                assert g == {"touchdowns": len(mine), "p50_m": p50, "p95_m": p95}
+                theirs = [r for r in rs if str(r["scenario"][field]) == value]
+                mine = [r["touchdown_error_m"] for r in theirs if r["touchdown_error_m"] is not None]
+                p50, p95 = (round(float(np.percentile(mine, q)), 4) if mine else None for q in (50, 95))
+                off = sum(r["off_target_touchdowns"] for r in theirs)
+                assert g == {"touchdowns": len(mine), "p50_m": p50, "p95_m": p95, "off_target_touchdowns": off}
     a, b = doc["configs"]["thesis"]["touchdown_p95_m"], doc["configs"]["seapick"]["touchdown_p95_m"]
     assert doc["ratio_p95"] == (round(a / b, 3) if a is not None and b else None)
+
+
+def _line(run: int, estimator: str, error_m: float | None, off_target: int) -> dict[str, Any]:
+    """A result line with just what the summary reads (a run of seapick at sea state 3)."""
+    return {
+        "run": run, "config": "seapick", "outcome": "picked_up" if error_m is not None else "failed", "caught": True,
+        "scenario": {"sea_state": 3, "estimator": estimator, "profile": "px4", "object_kind": "buoy"},
+        "touchdown_error_m": error_m, "grab_height_m": None, "time_to_pickup_s": None, "abort_reason": None,
+        "off_target_touchdowns": off_target, "envelope_violations": 0, "safety_violations": [],
+        "mission_s": 100.0, "wall_s": 1.0,
+    }  # fmt: skip
+
+
+def test_off_target_touchdowns_are_split_by_estimator_with_those_of_runs_that_never_picked_up():
+    """The touchdown split by the scenario's fields counts each value's off-target touchdowns over all its runs:
+    a failed run that met the water off the object is counted, and a value with neither a touchdown nor an
+    off-target one is not listed."""
+    results = [
+        _line(0, "gnss", 0.04, 0),
+        _line(1, "gnss", 0.30, 1),  # picked up at last, after meeting the water off the object once
+        _line(2, "px4-sih", None, 2),  # never picked up, twice down on the water off it
+        _line(3, "perfect", None, 0),  # never touched down at all
+    ]
+    by = summarise(results, ["seapick"])["configs"]["seapick"]["touchdown_by"]
+    assert by["estimator"] == {
+        "gnss": {"touchdowns": 2, "p50_m": 0.17, "p95_m": 0.287, "off_target_touchdowns": 1},
+        "px4-sih": {"touchdowns": 0, "p50_m": None, "p95_m": None, "off_target_touchdowns": 2},
+    }
+    assert by["profile"]["px4"]["off_target_touchdowns"] == 3
+    text = table(summarise(results, ["seapick"]))
+    assert "by estimator: gnss 0.170/0.287 (2, 1 off-target), px4-sih —/— (0, 2 off-target)" in text
+    assert "by object_kind: buoy 0.170/0.287 (2, 3 off-target)" in text
 
 
 def test_a_dask_cluster_gives_the_same_result_per_seed_as_local_processes(evaluation, monkeypatch):
