@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from app.messages import CameraModel, Vec3
+from app.messages import MIN_DEPTH_M, CameraModel, Vec3
 from app.settings import CameraSettings
 
 FloatArray = NDArray[np.float64]
@@ -51,6 +51,13 @@ def marker_corners_ned(
     local = np.array([[s, -s, 0.0], [s, s, 0.0], [-s, s, 0.0], [-s, -s, 0.0]])  # N, E, D in the marker frame
     R = _euler_zyx(roll_rad, pitch_rad, yaw_rad)
     return np.asarray(centre_ned_m, dtype=np.float64) + local @ R.T
+
+
+def _level_corners_ned(centre_ned_m: FloatArray, size_m: float) -> FloatArray:
+    """``marker_corners_ned`` of a level marker at yaw 0 (its rotation the identity): the same corners, to the bit."""
+    n, e, d = centre_ned_m.tolist()
+    s = size_m / 2.0
+    return np.array([[n + s, e - s, d], [n + s, e + s, d], [n - s, e + s, d], [n - s, e - s, d]])
 
 
 def mean_edge_px(corners_px: FloatArray) -> float:
@@ -102,6 +109,10 @@ class GeometricCamera:
         self.pixel_noise_std_px = pixel_noise_std_px
         self.margin_px = margin_px
         self.rng = np.random.default_rng(seed)
+        if len(self.model.distortion) > 8:
+            raise ValueError("the geometric camera takes up to 8 distortion coefficients (k1 k2 p1 p2 k3 k4 k5 k6)")
+        k = (*self.model.distortion, 0.0, 0.0, 0.0, 0.0)
+        self._k = (k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7])
 
     def frame(
         self,
@@ -131,29 +142,61 @@ class GeometricCamera:
         centre = np.asarray(marker_centre_ned_m, dtype=np.float64)
         sea_down = centre[2] if sea_down_under_radar_m is None else sea_down_under_radar_m
 
-        corners_ned = marker_corners_ned(
-            marker_centre_ned_m,
-            self.marker_size_m if marker_size_m is None else marker_size_m,
-            marker_yaw_rad,
-            marker_roll_rad,
-            marker_pitch_rad,
-        )
+        size_m = self.marker_size_m if marker_size_m is None else marker_size_m
+        if marker_yaw_rad == 0.0 and marker_roll_rad == 0.0 and marker_pitch_rad == 0.0:
+            corners_ned = _level_corners_ned(centre, size_m)
+        else:
+            corners_ned = marker_corners_ned(
+                marker_centre_ned_m, size_m, marker_yaw_rad, marker_roll_rad, marker_pitch_rad
+            )
         points_ned = np.vstack([corners_ned, centre])
-        points_cam = (points_ned - cam_ned) @ R_ned_cam  # R_cam_ned = R_ned_camᵀ, applied to rows
-        pixels = self.model.project(points_cam)
+        points_cam: list[list[float]] = ((points_ned - cam_ned) @ R_ned_cam).tolist()  # R_cam_ned = R_ned_camᵀ
+        pixels = [self._project(p[0], p[1], p[2]) for p in points_cam]
+        visible = all(p[2] > 0.0 for p in points_cam[:4]) and all(self._in_image(u, v) for u, v in pixels[:4])
+        noise: list[list[float]] = self.rng.normal(0.0, self.pixel_noise_std_px, size=(4, 2)).tolist()
         corners_true = pixels[:4]
-        visible = bool(np.all(points_cam[:4, 2] > 0.0) and np.all(self.model.in_image(corners_true, self.margin_px)))
-        noisy = corners_true + self.rng.normal(0.0, self.pixel_noise_std_px, size=(4, 2))
         return GeometricFrame(
             t_s=t_s,
             visible=visible,
-            corners_px=noisy,
-            corners_true_px=corners_true,
-            centre_true_px=pixels[4],
+            corners_px=np.array([[u + du, v + dv] for (u, v), (du, dv) in zip(corners_true, noise, strict=True)]),
+            corners_true_px=np.array(corners_true),
+            centre_true_px=np.array(pixels[4]),
             marker_centre_ned_m=(float(centre[0]), float(centre[1]), float(centre[2])),
             corners_ned_m=corners_ned,
             camera_pos_ned_m=(float(cam_ned[0]), float(cam_ned[1]), float(cam_ned[2])),
             R_ned_cam=R_ned_cam,
             camera_height_m=float(centre[2] - cam_ned[2]),
             radar_height_m=float(sea_down - radar_ned[2]),
+        )
+
+    def _project(self, x_m: float, y_m: float, z_m: float) -> tuple[float, float]:
+        """``CameraModel.project`` of one point, in floats: OpenCV's ``projectPoints`` (no rotation, no translation)
+        term by term in its order, so the same pixels to the last bit (tests/sim/test_camera_geometry.py); a point
+        not in front of the camera gives NaN pixels, as there."""
+        if not z_m > MIN_DEPTH_M:
+            return math.nan, math.nan
+        k0, k1, k2, k3, k4, k5, k6, k7 = self._k
+        iz = 1.0 / z_m
+        x, y = x_m * iz, y_m * iz
+        r2 = x * x + y * y
+        r4 = r2 * r2
+        r6 = r4 * r2
+        a1, a2, a3 = 2 * x * y, r2 + 2 * x * x, r2 + 2 * y * y
+        cdist = 1 + k0 * r2 + k1 * r4 + k4 * r6
+        icdist2 = 1.0 / (1 + k5 * r2 + k6 * r4 + k7 * r6)
+        xd = x * cdist * icdist2 + k2 * a1 + k3 * a2
+        yd = y * cdist * icdist2 + k2 * a3 + k3 * a1
+        m = self.model
+        return xd * m.fx_px + m.cx_px, yd * m.fy_px + m.cy_px
+
+    def _in_image(self, u: float, v: float) -> bool:
+        """``CameraModel.in_image`` of one pixel, with this camera's margin."""
+        m, margin = self.model, self.margin_px
+        return (
+            math.isfinite(u)
+            and math.isfinite(v)
+            and u >= margin
+            and v >= margin
+            and u <= m.width_px - 1 - margin
+            and v <= m.height_px - 1 - margin
         )

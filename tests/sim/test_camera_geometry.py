@@ -87,3 +87,44 @@ def test_mean_edge_is_the_apparent_size_to_numpys_last_bit() -> None:
     for _ in range(500):
         c = rng.normal(size=(4, 2)) * 200.0 + 600.0
         assert mean_edge_px(c) == float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+
+
+@pytest.mark.parametrize(
+    "distortion",
+    [
+        (0.0, 0.0, 0.0, 0.0, 0.0),
+        (-0.28, 0.07, 0.001, -0.0005, -0.01),
+        (0.1, -0.2, 0.002, 0.001, 0.05, 0.01, -0.02, 0.003),
+    ],
+    ids=["none", "barrel", "rational"],
+)
+def test_the_frames_pixels_are_opencvs_projection_to_the_last_bit(distortion) -> None:
+    """The frame projects in floats (no cv2 call per frame): the same pixels as ``CameraModel.project``
+    (``cv2.projectPoints``), bit for bit, inside the image and far outside it, and NaN behind the camera."""
+    g = GeometricCamera(CAM.model_copy(update={"distortion": distortion}), pixel_noise_std_px=0.0)
+    rng = np.random.default_rng(4)
+    points = np.column_stack([rng.uniform(-6.0, 6.0, (3000, 2)), rng.uniform(0.05, 25.0, 3000)])
+    expected = g.model.project(points).tolist()
+    assert [list(g._project(*p)) for p in points.tolist()] == expected
+    assert all(math.isnan(x) for x in g._project(1.0, 1.0, -2.0) + g._project(1.0, 1.0, 0.0))
+    # a whole frame: the pixels of its corners and centre as CameraModel projects them, visibility as in_image says
+    for _ in range(200):
+        pos = (*rng.uniform(-2.0, 2.0, 2), -rng.uniform(0.3, 12.0))
+        att = rng.uniform(-0.4, 0.4, 3)
+        f = g.frame(0.0, pos, *att, (*rng.uniform(-3.0, 3.0, 2), 0.0), marker_size_m=0.3)
+        points_cam = (np.vstack([f.corners_ned_m, f.marker_centre_ned_m]) - f.camera_pos_ned_m) @ f.R_ned_cam
+        px = g.model.project(points_cam)
+        np.testing.assert_array_equal(np.vstack([f.corners_true_px, f.centre_true_px]), px)
+        assert f.visible == bool(np.all(points_cam[:4, 2] > 0) and np.all(g.model.in_image(px[:4], g.margin_px)))
+
+
+def test_a_level_markers_corners_are_those_of_the_rotated_square_to_the_bit() -> None:
+    g = GeometricCamera(CAM, pixel_noise_std_px=0.0)
+    for centre in [(1.0, 2.0, 0.5), (-3.3, 0.7, -0.12), (0.0, 0.0, 0.0)]:
+        f = g.frame(0.0, above(4.0), 0.0, 0.0, 0.0, centre, marker_size_m=0.17)
+        np.testing.assert_array_equal(f.corners_ned_m, marker_corners_ned(centre, 0.17))
+
+
+def test_more_distortion_terms_than_the_geometric_camera_models_are_refused() -> None:
+    with pytest.raises(ValueError, match="up to 8 distortion coefficients"):
+        GeometricCamera(CAM.model_copy(update={"distortion": (0.0,) * 12}))
