@@ -161,7 +161,7 @@ async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: 
     world = EvalPickupWorld(vehicle, scenario, settings, sc["clutter"], cfg.full_frame_detection)
     table = inputs.table
     table = table.model_copy(update={"params": table.params.model_copy(update=mission_params(sc, cfg))})
-    clock = LoopClock()
+    clock = LoopClock(asyncio.get_running_loop())  # the run's own loop
     events = EventLog(run_dir / "events.jsonl" if run_dir is not None else None)
     states: list[dict[str, Any]] = []
     events.subscribe({"state"}, states.append)

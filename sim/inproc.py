@@ -32,6 +32,7 @@ import asyncio
 import math
 from typing import Any
 
+from app.clock import sleep_on
 from app.errors import VehicleConnectionError, VehicleError
 from app.messages import (
     AttitudeEuler,
@@ -99,6 +100,7 @@ class InProcessVehicle:
             dynamics, profile, origin, params, gps_fix_delay_s, on_event=self._on_event, fixed_grid=True
         )
         self._period_s = 1.0 / wake_hz
+        self._loop: asyncio.AbstractEventLoop | None = None  # while ``run`` runs: its loop (``LoopClock`` says why)
         self._stream: PositionTarget | None = None
         self._stream_started_s = 0.0
         self._next_resend_s = 0.0
@@ -119,9 +121,13 @@ class InProcessVehicle:
 
     async def run(self) -> None:
         """Bring the simulation up to now every ``1/wake_hz`` until cancelled."""
-        while True:
-            self._advance()
-            await asyncio.sleep(self._period_s)
+        self._loop = loop = asyncio.get_running_loop()
+        try:
+            while True:
+                self._advance()
+                await sleep_on(loop, self._period_s)
+        finally:
+            self._loop = None
 
     async def wait_ready(self, timeout_s: float) -> None:
         loop = asyncio.get_running_loop()
@@ -285,7 +291,7 @@ class InProcessVehicle:
 
         The setpoint watchdogs are polled at every re-send and at ``now`` (on the world's clock).
         """
-        t_s = asyncio.get_running_loop().time()
+        t_s = (self._loop or asyncio.get_running_loop()).time()
         st = self.stack
         while self._stream is not None and self._next_resend_s <= t_s:
             t_resend_s = self._next_resend_s

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from app.clock import sleep_on
 from app.estimators.rotations import euler_zyx_to_matrix
 from app.missions.pickup import RadarCalibrator
 from app.missions.pickup_feeds import CameraObservation, HeightSample, PickupFeeds
@@ -143,7 +144,8 @@ class PickupWorld:
         sc = self.scenario
         while True:
             next_s += sc.frame_period_s
-            await asyncio.sleep(max(0.0, next_s - loop.time()))
+            delay_s = next_s - loop.time()
+            await (sleep_on(loop, delay_s) if delay_s > 0.0 else asyncio.sleep(0))
             t_s = loop.time()
             truth = self.vehicle.truth()
             self._judge_grab(t_s, truth)

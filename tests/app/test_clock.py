@@ -118,3 +118,45 @@ def test_refused_it_says_so_and_the_thread_stays_at_normal_scheduling():
     with realtime_thread(100) as policy:  # above SCHED_FIFO's 99: the kernel refuses it, as it does without privilege
         assert policy.startswith("normal (SCHED_FIFO 100 refused: ") and os.sched_getscheduler(0) == os.SCHED_OTHER
     assert os.sched_getscheduler(0) == os.SCHED_OTHER
+
+
+def test_a_clock_bound_to_its_loop_tells_and_sleeps_as_asyncio_does_wake_for_wake() -> None:
+    """``LoopClock(loop)`` (an evaluation run's clock) reads that loop's time and sleeps on it without asking asyncio
+    for the running loop: the same timers, so sleepers on it and on ``asyncio.sleep`` wake in the same order, at the
+    same instants (virtual time), and a cancelled sleep leaves no timer behind."""
+    from sim.virtual_loop import VirtualTimeLoop
+
+    def wakes(bound: bool) -> tuple[list[tuple[str, float]], int]:
+        loop = VirtualTimeLoop()
+        clock = LoopClock(loop if bound else None)
+        woke: list[tuple[str, float]] = []
+
+        async def sleeper(name: str, dts: list[float], on_clock: bool) -> None:
+            for dt in dts:
+                await (clock.sleep(dt) if on_clock else asyncio.sleep(dt))
+                woke.append((name, clock.now_s()))
+
+        async def main() -> int:
+            tasks = [
+                asyncio.create_task(sleeper("clock", [0.02, 0.03, 0.0, 0.05], True)),
+                asyncio.create_task(sleeper("asyncio", [0.02, 0.03, 0.0, 0.05], False)),
+                asyncio.create_task(sleeper("clock-late", [0.05, 0.05], True)),
+                asyncio.create_task(sleeper("cancelled", [0.5], True)),
+            ]
+            await asyncio.sleep(0.01)
+            tasks[3].cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+            return len(loop._scheduled) - sum(h.cancelled() for h in loop._scheduled)  # timers still live
+
+        try:
+            live = loop.run_until_complete(main())
+        finally:
+            loop.close()
+        return woke, live
+
+    bound, live = wakes(True)
+    assert bound == wakes(False)[0] and live == 0
+    assert [t for n, t in bound if n == "clock"] == [t for n, t in bound if n == "asyncio"]
+    assert [t for n, t in bound if n == "clock"] == pytest.approx([0.02, 0.05, 0.05, 0.1])
+    assert [t for n, t in bound if n == "clock-late"] == pytest.approx([0.05, 0.1])
+    assert "cancelled" not in dict(bound)
