@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from app.cli import OneLineParser, name_list, number, run_cli
-from sim.evaluate_pickup import Job, Progress, RunInputs, run_jobs
+from sim.evaluate_jobs import Job, Progress, run_jobs
+from sim.evaluate_pickup import RunInputs
 from sim.evaluate_report import summarise, table, write_index_html, write_report_png
 from sim.native import active as native_active
 from sim.pickup_scenarios import CONFIGS, sample_scenarios

@@ -20,7 +20,8 @@ import pytest
 from app.missions.pickup_feeds import PickupFeeds
 from app.settings import load_settings
 from sim import evaluate_cli
-from sim.evaluate_pickup import OUTCOMES, mission_params, run_jobs
+from sim.evaluate_jobs import run_jobs
+from sim.evaluate_pickup import OUTCOMES, mission_params
 from sim.evaluate_report import summarise, table
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
