@@ -8,11 +8,17 @@ seconds (the object's mean position is ``start_ne_m`` at t = 0). Directions in d
 the current the oceanographic way (``current_to_deg``: where the water flows *to*), waves and wind the
 meteorological way (``*_from_deg``: where they come *from*).
 
-Waves: linear, deep water, the seeded components of :mod:`sim.sea_spectrum` (k̂ = k/|k|)::
+Waves: linear, deep water, the seeded components of :mod:`sim.sea_spectrum` (k̂ = k/|k|), carried by the
+current — they are the still-water waves in the water's frame, which moves by D(t) = ∫₀ᵗ U dt::
 
-    η(t, x)   = Σ a cos θ,          θ = ω t − k·x + φ          surface height, positive up
-    u(t, x)   = Σ a ω cos θ · k̂                                horizontal orbital velocity at the surface
-    w_d(t, x) = −∂η/∂t = Σ a ω sin θ                           vertical, positive down
+    η(t, x)   = Σ a cos θ,          θ = ω t − k·(x − D(t)) + φ    surface height, positive up
+    u(t, x)   = Σ a ω cos θ · k̂                                  horizontal orbital velocity at the surface
+    w_d(t, x) = Σ a ω sin θ                                        vertical (a water particle's), positive down
+
+A sensor hovering at x sees the waves at ω + k·U (Doppler); what drifts with the water sees them at ω. (Before
+2026-12-03 the waves stood still while the current carried the object through them: it met each at ω − k·U,
+which no uniform current does — a current is a moving frame — and the short waves against the current came up
+to a quarter faster.)
 
 Current: steady ``U0`` plus a slow seeded variation, three sinusoids per axis with periods around
 ``current_period_s`` and RMS magnitude σ = ``current_variation_mps``::
@@ -22,15 +28,16 @@ Current: steady ``U0`` plus a slow seeded variation, three sinusoids per axis wi
 Floating object: small compared with the waves, so it follows the surface — first-order Lagrangian motion
 about a mean position that drifts with the current and a little windage (w = windage · wind)::
 
-    x̄(t) = x0 + ∫₀ᵗ U dt + w t (+ downwash offset)       mean position, closed form
-    θ(t) = ω t − k·x̄(t) + φ                            phase the object sees (θ̇ = ω − k·dx̄/dt: encounter)
+    x̄(t) = x0 + D(t) + w t (+ downwash offset)          mean position, closed form
+    θ(t) = ω t − k·(x̄(t) − D(t)) + φ                   phase the object sees (θ̇ = ω − k·(w + push): it meets
+                                                         the waves only as fast as it moves through the water)
     p_ne = x̄ + Σ a sin θ · k̂                            surge/sway on the orbit
     p_d  = −Σ a cos θ = −η(t, x̄)                        heave
 
 Velocity and acceleration are the exact time derivatives of these expressions. Not modelled: Stokes drift
-(second order; Σ a² ω k is ~5, 8, 11, 15 cm/s along the waves at the surface in sea states 2–5),
-wave–current interaction, the hull filtering waves shorter than itself (``diameter_m`` is for the renderer
-and the radar). Deterministic for a seed; no clock.
+(second order; Σ a² ω k is ~5, 8, 11, 15 cm/s along the waves at the surface in sea states 2–5), a current
+that varies in space (refraction, the waves steepening against it), the hull filtering waves shorter than
+itself (``diameter_m`` is for the renderer and the radar). Deterministic for a seed; no clock.
 """
 
 from __future__ import annotations
@@ -138,7 +145,7 @@ class SeaWorld:
         else:
             self.components = no_components()
         w = self.components
-        # θ = [t, n, e, 1] @ phase_matrix  =  ω t − k_n n − k_e e + φ
+        # θ = [t, n, e, 1] @ phase_matrix  =  ω t − k_n n − k_e e + φ, (n, e) in the water's frame (x − D(t))
         self._phase_matrix = np.stack([w.omega_radps, -w.k_north, -w.k_east, w.phase_rad])
         # a ω k̂ and a ω: the weights of the orbital velocity
         a_omega = w.amplitude_m * w.omega_radps
@@ -218,14 +225,27 @@ class SeaWorld:
         _, vel_ne, _ = self._current_ne(t.ravel())
         return np.concatenate([vel_ne, np.zeros((t.size, 1))], axis=1).reshape((*t.shape, 3))
 
+    def water_displacement_ne_m(self, t_s: ArrayLike) -> FloatArray:
+        """D(t) = ∫₀ᵗ U dt: how far the current has carried the water (and its waves) since t = 0, north and
+        east, m, shape ``shape(t_s) + (2,)``."""
+        t = np.asarray(t_s, dtype=np.float64)
+        return self._current_ne(t.ravel())[0].reshape((*t.shape, 2))
+
     def _phase_trig(self, n_rows: int) -> PhaseTrig:
         return self._trig_one if n_rows == 1 else PhaseTrig(self._phase_matrix, n_rows)
 
     def _phase_rows(self, t_s: ArrayLike, north_m: ArrayLike, east_m: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
+        """The rows [t, n − D_n(t), e − D_e(t), 1] of the phases at (t, north, east): each place in the water's
+        frame, which the current has carried D(t) = ∫₀ᵗ U dt; and the broadcast shape (() for one point)."""
         if isinstance(t_s, float) and isinstance(north_m, float) and isinstance(east_m, float):  # one point
-            return np.array([[t_s, north_m, east_m, 1.0]]), ()
+            (dn, de), _, _ = self.current_one(t_s)
+            return np.array([[t_s, north_m - dn, east_m - de, 1.0]]), ()
         t, n, e = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (t_s, north_m, east_m)))
-        return np.stack([t.ravel(), n.ravel(), e.ravel(), np.ones(t.size)], axis=1), t.shape
+        if np.ndim(t_s) == 0:  # one time (a grid of places): the current's displacement once
+            (dn, de), _, _ = self.current_one(float(t_s))  # type: ignore[arg-type]
+            return np.stack([t.ravel(), n.ravel() - dn, e.ravel() - de, np.ones(t.size)], axis=1), t.shape
+        d = self.water_displacement_ne_m(t.ravel())
+        return np.stack([t.ravel(), n.ravel() - d[:, 0], e.ravel() - d[:, 1], np.ones(t.size)], axis=1), t.shape
 
     def current_one(self, t_s: float) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
         """``_current_ne`` at one time, in floats: ∫₀ᵗ U dt, U(t) and dU/dt, each (north, east)."""
@@ -307,24 +327,24 @@ class FloatingObject:
         simulator asks at every camera frame, and numpy's per-call cost was most of it); equal to :meth:`states`'
         values within 1e-9 m (a few sums are added in another order, and the float32 phase rounds with them)."""
         sea = self.sea
-        (cn, ce), (vn, ve), (an, ae) = sea.current_one(t_s)
-        wn, we = sea.windage_drift_ned_mps[0], sea.windage_drift_ned_mps[1]
-        # x̄ = x0 + ∫U dt + w t + push
-        mn = self.start_ne_m[0] + cn + wn * t_s
-        me = self.start_ne_m[1] + ce + we * t_s
-        vn, ve = vn + wn, ve + we
+        (cn, ce), (un, ue), (an, ae) = sea.current_one(t_s)
+        # through the water (the waves' frame): x0 + w t + push, at w + push rate
+        vn, ve = sea.windage_drift_ned_mps[0], sea.windage_drift_ned_mps[1]
+        rn, re = self.start_ne_m[0] + vn * t_s, self.start_ne_m[1] + ve * t_s
         if self._push_start_s:
             push, rate = self._push(np.array([t_s], dtype=np.float64))
-            mn, me = mn + float(push[0, 0]), me + float(push[0, 1])
+            rn, re = rn + float(push[0, 0]), re + float(push[0, 1])
             vn, ve = vn + float(rate[0, 0]), ve + float(rate[0, 1])
-        cos, sin = sea._trig_one(np.array([[t_s, mn, me, 1.0]]))
-        monomials = ((1.0,), (1.0, vn, ve), (1.0, vn, ve, vn * vn, vn * ve, ve * ve), (an, ae))
+        # x̄ = x0 + D + w t + push;  θ = ω t − k·(x̄ − D) + φ, its rate ω − k·(w + push rate), its own rate 0
+        mn, me = rn + cn, re + ce
+        cos, sin = sea._trig_one(np.array([[t_s, rn, re, 1.0]]))
+        monomials = ((1.0,), (1.0, vn, ve), (1.0, vn, ve, vn * vn, vn * ve, ve * ve), (0.0, 0.0))
         cos_1, cos_rate, cos_rate_sq, cos_accel = self._cos_sums.one(cos, monomials)
         sin_1, sin_rate, sin_rate_sq, sin_accel = self._sin_sums.one(sin, monomials)
         return ObjectTruth(
             t_s=t_s,
             pos_ned_m=(mn + sin_1[0], me + sin_1[1], -cos_1[0]),
-            vel_ned_mps=(vn + cos_rate[0], ve + cos_rate[1], sin_rate[0]),
+            vel_ned_mps=(un + vn + cos_rate[0], ue + ve + cos_rate[1], sin_rate[0]),
             acc_ned_mps2=(
                 an + (cos_accel[0] - sin_rate_sq[0]),
                 ae + (cos_accel[1] - sin_rate_sq[1]),
@@ -339,18 +359,20 @@ class FloatingObject:
         current_ne, current_vel_ne, current_acc_ne = sea._current_ne(t)
         windage_ne = np.array(sea.windage_drift_ned_mps[:2])
         push_ne, push_rate_ne = self._push(t)
-        # x̄ = x0 + ∫U dt + w t + push
-        mean_ne = np.array(self.start_ne_m) + current_ne + windage_ne * t[:, None] + push_ne
-        mean_vel_ne = current_vel_ne + windage_ne + push_rate_ne
+        # through the water (the waves' frame): x0 + w t + push, at w + push rate;  x̄ = that + D
+        water_ne = np.array(self.start_ne_m) + windage_ne * t[:, None] + push_ne
+        water_vel_ne = windage_ne + push_rate_ne
+        mean_ne = water_ne + current_ne
+        mean_vel_ne = current_vel_ne + water_vel_ne
         mean_acc_ne = current_acc_ne
 
         pos, vel, acc = np.zeros((len(t), 3)), np.zeros((len(t), 3)), np.zeros((len(t), 3))
         pos[:, :2], vel[:, :2], acc[:, :2] = mean_ne, mean_vel_ne, mean_acc_ne
         cos_sin = sea._phase_trig(len(t))
         for sl in row_blocks(len(t)):
-            # θ = ω t − k·x̄ + φ
-            cos, sin = cos_sin(np.column_stack([t[sl], mean_ne[sl], np.ones(len(t[sl]))]))
-            monomials = WaveSums.monomials(mean_vel_ne[sl], mean_acc_ne[sl])
+            # θ = ω t − k·(x̄ − D) + φ;  θ̇ = ω − k·(w + push rate);  θ̈ = 0
+            cos, sin = cos_sin(np.column_stack([t[sl], water_ne[sl], np.ones(len(t[sl]))]))
+            monomials = WaveSums.monomials(water_vel_ne[sl], np.zeros_like(water_vel_ne[sl]))
             # [Σ a cos θ, Σ a k̂ cos θ θ̇, Σ a cos θ θ̇², Σ a k̂ cos θ θ̈]
             cos_1, cos_rate, cos_rate_sq, cos_accel = self._cos_sums(cos, monomials)
             # [Σ a k̂ sin θ, Σ a sin θ θ̇, Σ a k̂ sin θ θ̇², Σ a sin θ θ̈]

@@ -41,7 +41,8 @@ from app.estimators.target_filter import Array, LinearTargetFilter, ScalarMeasur
 # seed (sim.evaluate, seed 7, sea states 2–4): 8 oscillators beat 3 and 6 at the 1-s horizon.
 OSCILLATOR_RATIOS = (0.7, 0.85, 1.0, 1.15, 1.35, 1.6, 1.9, 2.3)
 # The bank on up to the simulated sea's band's top (3.5·ω_p): two more oscillators for the short waves (above 2·ω_p,
-# σ 0.22 of the 0.47 m/s orbital speed at sea state 3; an object drifting through them meets them sooner, higher).
+# σ 0.22 of the 0.47 m/s orbital speed at sea state 3; an object the wind pushes through the water meets them
+# sooner, higher).
 # Not the default yet (README, *Evaluating*: more objects picked up in strong currents, more off-target contacts).
 OSCILLATOR_BANKS = {"standard": OSCILLATOR_RATIOS, "wide": (*OSCILLATOR_RATIOS, 2.8, 3.4)}
 DIRECTION_TAU_S = 60.0  # the waves' direction: a mean over about this long …

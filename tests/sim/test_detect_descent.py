@@ -48,7 +48,11 @@ def test_a_vehicle_following_the_object_keeps_the_marker_to_the_last_half_metre(
 
 def test_a_ringing_vehicle_loses_only_what_is_out_of_view_or_too_small(ringing) -> None:
     """Tilt up to ~30°: the marker leaves the image (the gaps), but every frame where it is decodable is found."""
-    min_rate = {"4-3": 0.85, "3-2": 0.78, "2-1.5": 0.85, "1.5-1": 0.78, "1-0.6": 0.55, "0.6-0.3": 0.25}
+    # How much of the time the marker is in view at all is the ringing's geometry over this sea, not the detector's
+    # doing. Since 2026-12-03 the current carries the waves (``sim.sea``): the same five descents meet the object
+    # in another phase, and the 1.5-1 m and 0.6-0.3 m bands hold it 0.747 and 0.200 of the time (0.770 and 0.356
+    # over 20 seeds; 0.833 and 0.263 on the sea before), every miss out of view (below: every decodable frame found)
+    min_rate = {"4-3": 0.85, "3-2": 0.78, "2-1.5": 0.85, "1.5-1": 0.70, "1-0.6": 0.55, "0.6-0.3": 0.15}
     max_gap_s = {"4-3": 0.5, "3-2": 0.5, "2-1.5": 0.5, "1.5-1": 0.5, "1-0.6": 0.6, "0.6-0.3": 0.8}
     for band in BANDS:
         row = ringing[band]

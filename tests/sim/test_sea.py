@@ -23,9 +23,12 @@ Spectrum = Literal["pm", "jonswap"]
 
 
 def fixed_point_record(sea: SeaWorld) -> np.ndarray:
-    """η at a fixed point, sampled at FS_HZ over LONG_RUN_S."""
+    """η at a point fixed in the water (drifting with the current, as a wave buoy adrift: the sea state's
+    spectrum is the waves' own, not the Doppler-shifted one a moored buoy records), sampled at FS_HZ over
+    LONG_RUN_S."""
     t = np.arange(0.0, LONG_RUN_S, 1.0 / FS_HZ)
-    return np.asarray(sea.surface_elevation_m(t, 12.0, -7.0))
+    d = sea.water_displacement_ne_m(t)
+    return np.asarray(sea.surface_elevation_m(t, 12.0 + d[:, 0], -7.0 + d[:, 1]))
 
 
 def welch_peak_period_s(eta: np.ndarray, spectrum: Spectrum) -> tuple[float, float]:
@@ -144,6 +147,42 @@ def test_mean_drift_over_hours_is_current_plus_windage() -> None:
     np.testing.assert_allclose((pos[-1, :2] - pos[0, :2]) / t[-1], expected_ne, atol=2e-3)
     np.testing.assert_allclose(vel[:, :2].mean(axis=0), expected_ne, atol=2e-3)
     assert abs(vel[:, 2].mean()) < 2e-3
+
+
+def test_the_current_carries_the_waves_so_the_object_rides_them_as_in_still_water() -> None:
+    """A uniform current is a moving frame (Galilean): the object it carries rides the same orbits at the
+    same frequencies as in still water, and the surface is the still sea's, carried along by U t. Before
+    2026-12-03 the waves stood still and the object, carried through them, met them at ω − k·U."""
+    current = SeaConfig(sea_state=3, current_mps=0.7, current_to_deg=200.0, current_variation_mps=0.0, wind_mps=0.0)
+    still, moving = SeaWorld(replace(STILL_WATER, sea_state=3), seed=8), SeaWorld(current, seed=8)
+    u_ne = 0.7 * np.array([math.cos(math.radians(200.0)), math.sin(math.radians(200.0))])
+    t = np.arange(0.0, 300.0, 0.25)
+    pos_s, vel_s, acc_s = FloatingObject(still, (5.0, -3.0)).states(t)
+    pos_m, vel_m, acc_m = FloatingObject(moving, (5.0, -3.0)).states(t)
+    np.testing.assert_allclose(pos_m[:, :2] - u_ne * t[:, None], pos_s[:, :2], atol=1e-6)
+    np.testing.assert_allclose(pos_m[:, 2], pos_s[:, 2], atol=1e-9)
+    np.testing.assert_allclose(vel_m[:, :2] - u_ne, vel_s[:, :2], atol=1e-9)
+    np.testing.assert_allclose(acc_m, acc_s, atol=1e-9)
+    # the surface: carried along with the water …
+    n, e = 12.0 + u_ne[0] * t, -7.0 + u_ne[1] * t
+    np.testing.assert_allclose(moving.surface_elevation_m(t, n, e), still.surface_elevation_m(t, 12.0, -7.0), atol=1e-9)
+    np.testing.assert_allclose(
+        moving.surface_velocity_ned_mps(t, n, e), still.surface_velocity_ned_mps(t, 12.0, -7.0), atol=1e-9
+    )
+    # … one point and one time at a time too
+    for i in (0, 7, 1000):
+        ti = float(t[i])
+        assert moving.surface_elevation_m(ti, float(n[i]), float(e[i])) == pytest.approx(
+            still.surface_elevation_m(ti, 12.0, -7.0), abs=1e-9
+        )
+    grid_n, grid_e = np.meshgrid(np.linspace(-5.0, 5.0, 7), np.linspace(0.0, 9.0, 5))
+    np.testing.assert_allclose(
+        moving.surface_elevation_m(40.0, grid_n + 40.0 * u_ne[0], grid_e + 40.0 * u_ne[1]),
+        still.surface_elevation_m(40.0, grid_n, grid_e),
+        atol=1e-9,
+    )
+    # a moored point sees the waves pass faster or slower: not the still sea's record
+    assert np.abs(moving.surface_elevation_m(t, 12.0, -7.0) - still.surface_elevation_m(t, 12.0, -7.0)).max() > 0.3
 
 
 def test_current_varies_slowly_around_its_steady_value() -> None:

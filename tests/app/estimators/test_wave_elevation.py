@@ -24,12 +24,13 @@ BLIND_S = (0.45, 0.8)
 
 
 def blind_errors(seed: int, elevation_std_m: float | None) -> tuple[dict[float, list[float]], WaveFilter, float]:
-    """Per blind time, the prediction errors at instants 1.7 s apart after 40 s; the filter; the waves' heading."""
+    """Per blind time, the prediction errors at instants 1.7 s apart after 40 s (of 8 minutes); the filter; the
+    waves' heading."""
     rng = np.random.default_rng(100 + seed)
     from_deg = float(rng.uniform(0.0, 360.0))
     sea = SeaWorld(SeaConfig(sea_state=3, wave_from_deg=from_deg, wind_from_deg=from_deg, current_mps=0.5), seed=seed)
     obj = FloatingObject(sea, (0.0, 0.0))
-    duration_s = 240.0
+    duration_s = 480.0
     cfg = FixConfig(height_m=2.5, offset_std_m=0.3, false_rate=0.0, late_rate=0.0, mean_off_s=0.01)
     fixes = sorted(make_fixes(sea, obj, duration_s, seed, cfg).observations(), key=lambda o: o.t_s)
     t_eta = np.arange(0.05, duration_s, 1.0 / RADAR_HZ)

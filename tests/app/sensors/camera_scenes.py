@@ -10,7 +10,7 @@ import numpy as np
 from app.sensors.camera import ExposureControls
 from app.settings import CameraSettings, DetectorSettings
 from sim.camera_render import CameraRenderer, Conditions, RenderedFrame
-from sim.camera_render_poses import camera_pose, camera_seeing, object_pose
+from sim.camera_render_poses import Pose, camera_pose, camera_seeing, object_pose
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
 
 CAMERA = CameraSettings()
@@ -41,13 +41,26 @@ def render_at(
     frame_index: int = 0,
 ) -> RenderedFrame:
     """The object seen at ``pixel`` with an edge (marker) / diameter (buoy) of about ``size_px``."""
-    r = renderer(detector, camera)
+    cam, obj = scene_poses(pixel, size_px, detector, camera, t_s, attitude_rad, object_yaw_rad)
+    return renderer(detector, camera).render(t_s, cam, obj, ExposureControls(), conditions or Conditions(), frame_index)
+
+
+def scene_poses(
+    pixel: tuple[float, float],
+    size_px: float,
+    detector: DetectorSettings = MARKER,
+    camera: CameraSettings = CAMERA,
+    t_s: float = 10.0,
+    attitude_rad: tuple[float, float, float] = (0.05, -0.08, 0.3),
+    object_yaw_rad: float = 0.4,
+) -> tuple[Pose, Pose]:
+    """``render_at``'s camera and object poses (the object floats on the sea, tilted with its slope at ``t_s``)."""
     obj = object_pose(floating_object(), t_s, object_yaw_rad)
     edge_m = detector.marker_size_m if detector.kind == "aruco" else detector.buoy_diameter_m
     ray = math.hypot((pixel[0] - camera.cx_px) / camera.fx_px, (pixel[1] - camera.cy_px) / camera.fy_px, 1.0)
     cam = camera_seeing(camera, obj, pixel, camera.fx_px * edge_m / size_px * ray, *attitude_rad)
     assert cam is not None
-    return r.render(t_s, cam, obj, ExposureControls(), conditions or Conditions(), frame_index)
+    return cam, obj
 
 
 def paste(image: np.ndarray, patch: np.ndarray, at: tuple[int, int]) -> np.ndarray:
