@@ -78,7 +78,6 @@ class EvalConfig:
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
     height_from_size: bool = True  # low down, the height from the object's apparent size (``fix_height_from_size``)
     wave_oscillators: str = "standard"  # the wave filter's bank (``MissionParams.wave_oscillators``)
-    camera_aim_max_height_m: float | None = None  # stand back so the camera axis meets the object (``MissionParams``)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -106,11 +105,6 @@ CONFIGS: dict[str, EvalConfig] = {
     # seapick with the wave filter's oscillators on to 3.4·ω_p; not the default yet
     "seapick-wide": EvalConfig(
         "seapick-wide", "wave", latency_compensation=True, full_frame_detection=False, wave_oscillators="wide"
-    ),
-    # seapick standing back against its mean lean in DESCEND and GRAB so that the camera's axis meets the object
-    # (``ObjectTarget.camera_offset_ne``); not the default yet
-    "seapick-aim": EvalConfig(
-        "seapick-aim", "wave", latency_compensation=True, full_frame_detection=False, camera_aim_max_height_m=1.0
     ),
 }
 

@@ -226,7 +226,6 @@ async def start_descend(io: MissionIO) -> None:
         p.touchdown_height_m,
         math.inf if p.final_start_max_rise_mps is None else p.final_start_max_rise_mps,
         math.inf if p.final_blind_pause_s is None else p.final_blind_pause_s,
-        p.camera_aim_max_height_m or 0.0,
     )
     io.setpoints.engage(target, allow_below_min=True)
 
@@ -250,8 +249,7 @@ async def grab(io: MissionIO) -> None:
     p, now_s = io.params, io.now_s()
     start_m = m.height_over_mean_sea_m(now_s)
     start_m = p.touchdown_height_m if start_m is None else start_m
-    aim_m = p.camera_aim_max_height_m or 0.0
-    sink = SinkTarget(m, io.boundary.telemetry, start_m, p.grab_sink_speed_mps, -p.grab_press_m, aim_m)
+    sink = SinkTarget(m, io.boundary.telemetry, start_m, p.grab_sink_speed_mps, -p.grab_press_m)
     io.setpoints.engage(sink, allow_below_min=True, keep_integral=True)  # the same object as DESCEND's
     contact = WaterContact(io, now_s)
     m.grab_gone_blind = False

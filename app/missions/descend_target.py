@@ -76,9 +76,8 @@ class DescendTarget(ObjectTarget):
         touchdown_height_m: float | None = None,
         final_start_max_rise_mps: float = math.inf,
         blind_pause_s: float = math.inf,
-        camera_aim_max_height_m: float = 0.0,
     ) -> None:
-        super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad, camera_aim_max_height_m)
+        super().__init__(model, telemetry, start_height_m, lean_yaw_min_tilt_rad)
         self.final_start_max_rise_mps = final_start_max_rise_mps
         self.precise_max_drift_mps = precise_max_drift_mps
         self.touchdown_height_m = touchdown_height_m
@@ -221,15 +220,12 @@ class DescendTarget(ObjectTarget):
         return max(height_m, vehicle_m + self.crest_clearance_m - radar_m)
 
     def _off_the_object(self, t_s: float) -> tuple[float, float]:
-        """How far the vehicle is off the estimate (m, horizontal; off the point it aims at with
-        ``camera_aim_max_height_m``) and how fast it moves relative to it (m/s)."""
+        """How far the vehicle is off the estimate (m, horizontal) and how fast it moves relative to it (m/s)."""
         pv, est = self.telemetry().pos_vel, self.model.estimate(t_s)
         if pv is None or est is None:
             return math.inf, math.inf
         slip = horizontal_distance_m(pv.vel_ned_mps, est.vel_ned_mps)
-        dn, de = self.camera_offset_ne(self.height_m)
-        aim = (est.pos_ned_m[0] + dn, est.pos_ned_m[1] + de, est.pos_ned_m[2])
-        return horizontal_distance_m(pv.pos_ned_m, aim), slip
+        return horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m), slip
 
 
 def horizontal_distance_m(a: Vec3, b: Vec3) -> float:

@@ -161,14 +161,6 @@ class MissionParams(BaseModel):
         "the image's wider side once it leans this much on average (app.estimators.lean); unset: the heading is "
         "held, deg",
     )
-    camera_aim_max_height_m: float | None = Field(
-        None,
-        ge=0.0,
-        le=10.0,
-        description="in DESCEND and GRAB, stand back against the vehicle's mean lean so that the camera's axis "
-        "meets the object: by min(height over the mean sea, this)·tan(lean), nothing at the water "
-        "(ObjectTarget.camera_offset_ne); unset: right over the object, m",
-    )
     crest_margin_m: float = Field(
         0.5, ge=0.0, le=5.0, description="the final height clears the highest recent crest by this at least, m"
     )

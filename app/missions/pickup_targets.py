@@ -198,31 +198,12 @@ class ObjectTarget:
     name = "object"
 
     def __init__(
-        self,
-        model: PickupEstimates,
-        telemetry: Telemetry,
-        height_m: float,
-        lean_yaw_min_tilt_rad: float | None = None,
-        camera_aim_max_height_m: float = 0.0,
+        self, model: PickupEstimates, telemetry: Telemetry, height_m: float, lean_yaw_min_tilt_rad: float | None = None
     ) -> None:
         self.model = model
         self.telemetry = telemetry
         self.height_m = height_m
         self.lean_yaw_min_tilt_rad = lean_yaw_min_tilt_rad  # None: keep the heading
-        self.camera_aim_max_height_m = camera_aim_max_height_m  # 0: right over the object
-
-    def camera_offset_ne(self, height_m: float) -> tuple[float, float]:
-        """Where to stand relative to the object at ``height_m`` over the mean sea so that the camera's mean axis
-        meets it: back against the mean lean by min(height, ``camera_aim_max_height_m``)·tan(lean) (a downward
-        camera fixed to a body leaning ``lean`` looks that far downwind of the point under it; the object right
-        under the vehicle sits ``lean`` off the axis and leaves the view low down). Zero at the water, where the
-        gripper must be over the object."""
-        h_m = min(max(height_m, 0.0), self.camera_aim_max_height_m)
-        ne = self.model.over_sea.lean.ne if h_m > 0.0 else None
-        if ne is None:
-            return 0.0, 0.0
-        cos_tilt = math.sqrt(max(1e-6, 1.0 - ne[0] ** 2 - ne[1] ** 2))
-        return -h_m * ne[0] / cos_tilt, -h_m * ne[1] / cos_tilt
 
     def _sea(self, t_s: float) -> tuple[float, float]:
         """The mean sea surface (down) and its drift rate (above the radar's range: the last level it had)."""
@@ -236,8 +217,6 @@ class ObjectTarget:
         # horizontally the object (its wave motion included); vertically a height above the *mean* sea: the
         # vehicle does not ride the swell
         (n, e, _), (vn, ve, _), (an, ae, _) = est.pos_ned_m, est.vel_ned_mps, est.acc_ned_mps2
-        dn, de = self.camera_offset_ne(height_m)
-        n, e = n + dn, e + de
         return TargetState(t_s, (n, e, sea[0] - height_m), (vn, ve, sea[1]), (an, ae, 0.0), self._yaw(), precise)
 
     def _yaw(self) -> float | None:
@@ -264,15 +243,9 @@ class SinkTarget(ObjectTarget):
     name = "sink"
 
     def __init__(
-        self,
-        model: PickupEstimates,
-        telemetry: Telemetry,
-        height_m: float,
-        speed_mps: float,
-        floor_m: float,
-        camera_aim_max_height_m: float = 0.0,
+        self, model: PickupEstimates, telemetry: Telemetry, height_m: float, speed_mps: float, floor_m: float
     ) -> None:
-        super().__init__(model, telemetry, height_m, camera_aim_max_height_m=camera_aim_max_height_m)
+        super().__init__(model, telemetry, height_m)
         self.speed_mps, self.floor_m = speed_mps, floor_m
         self._t_s: float | None = None
 

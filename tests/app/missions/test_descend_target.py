@@ -11,9 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from app.estimators.lean import MeanLean, camera_axis_ne
 from app.estimators.sea_level import MeanSeaLevel
-from app.messages import AttitudeEuler, PositionVelocityNed, TargetEstimate, TelemetrySnapshot
+from app.messages import PositionVelocityNed, TargetEstimate, TelemetrySnapshot
 from app.missions.descend_target import DescendTarget
 from app.missions.estimates import Estimates
 from app.missions.pickup_targets import SinkTarget, VerifyTarget
@@ -35,7 +34,6 @@ class Scene:
         self.drift: tuple[tuple[float, float], tuple[float, float]] | None = None  # the filter's mean drift
         self.last_fix_t_s: float | None = None  # None: a new fix (0.05 s old) every tick; else no fix since
         self.radar_m: float | None = None  # the radar's height over the water under the vehicle (None: not seen)
-        self.over_sea = type("OverSea", (), {"lean": MeanLean()})()  # which way the vehicle leans on average
 
     # -- what DescendTarget reads --
     def snapshot(self, t_s: float) -> Estimates:
@@ -430,38 +428,3 @@ def test_the_final_part_starts_only_while_the_water_under_it_falls_when_asked(ma
         # the slope of the last 0.4 s lags the swell by 0.2 s and carries ~0.06 m/s of the radar's noise
         assert len(starts) > 100 and max(rises) < a_m * w * math.sin(w * 0.2) + 0.2
         assert min(rises) < -0.5  # it does start, behind the crests
-
-
-def test_aiming_the_camera_axis_it_stands_back_against_its_lean_by_less_the_lower_it_is_and_not_at_all_at_the_water():
-    """Leaning 20° (nose down, into a wind from the north), a downward camera looks 0.36 m south of the point
-    under it per metre of height: the object right under the vehicle sits 20° off the axis and leaves a 4:3 view
-    low down. With ``camera_aim_max_height_m`` the vehicle stands north of the object by min(h, 1 m)·tan 20°, so
-    that the camera's mean axis meets the object; at the water (the grab) it is right over it."""
-    scene = Scene(crest_m=0.2)
-    for k in range(400):  # 8 s of a steady lean: the mean is the lean
-        scene.over_sea.lean.add(AttitudeEuler(90.0 + k * DT, 0.0, math.radians(-20.0), 0.0))
-    axis_n, axis_e = camera_axis_ne(AttitudeEuler(0.0, 0.0, math.radians(-20.0), 0.0))
-    assert axis_n == pytest.approx(-math.sin(math.radians(20.0))) and axis_e == pytest.approx(0.0, abs=1e-12)
-    plain, aiming = descend(scene), descend(scene, camera_aim_max_height_m=1.0)
-    high = aiming.target_at(100.0)
-    assert plain.target_at(100.0).pos_ned_m[:2] == (0.0, 0.0)
-    back_m = math.tan(math.radians(20.0))  # over 1 m and higher: 1 m's worth
-    assert high.pos_ned_m[0] == pytest.approx(back_m, abs=1e-3) and high.pos_ned_m[1] == pytest.approx(0.0, abs=1e-9)
-    scene.vehicle_ne = (back_m, 0.0)  # where it aims: over the object as the final part sees it
-    t_s, seen = 100.0, []
-    while aiming.height_m > 0.0 and t_s < 120.0:
-        t_s = fly(aiming, scene, t_s, DT)
-        state = aiming.target_at(t_s)
-        h_m = -state.pos_ned_m[2]
-        # the camera's mean axis from the aim point meets the sea at the object
-        hit_n = state.pos_ned_m[0] + h_m * axis_n / math.cos(math.radians(20.0))
-        seen.append((h_m, state.pos_ned_m[0], hit_n))
-        scene.vehicle_ne = (state.pos_ned_m[0], 0.0)
-    assert aiming.plunging and aiming.height_m == 0.0  # the final part went down, the vehicle on its aim point
-    low = [(h, n, hit) for h, n, hit in seen if 0.0 < h <= 1.0]
-    assert len(low) > 20 and all(abs(hit) < 1e-6 for _, _, hit in low)
-    assert all(n == pytest.approx(h * back_m, abs=1e-3) for h, n, _ in low)
-    assert seen[-1][1] == pytest.approx(0.0, abs=1e-9)  # at the water: right over the object
-    sink = SinkTarget(scene, scene.telemetry, 0.3, 0.8, -1.0, camera_aim_max_height_m=1.0)  # type: ignore[arg-type]
-    assert sink.target_at(200.0).pos_ned_m[0] == pytest.approx(0.3 * back_m, abs=1e-3)
-    assert sink.target_at(200.5).pos_ned_m[:2] == (0.0, 0.0)  # under the mean sea: over the object
