@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Any
 
 import numpy as np
 
@@ -16,6 +17,7 @@ from sim.sea import FloatingObject, SeaConfig, SeaWorld
 CAMERA = CameraSettings()
 MARKER = DetectorSettings()
 BUOY = DetectorSettings(kind="buoy")
+T_S = 10.0  # when the scene is, s
 
 
 @functools.lru_cache(maxsize=8)
@@ -32,17 +34,15 @@ def render_at(
     pixel: tuple[float, float],
     size_px: float,
     *,
-    detector: DetectorSettings = MARKER,
-    camera: CameraSettings = CAMERA,
-    t_s: float = 10.0,
-    attitude_rad: tuple[float, float, float] = (0.05, -0.08, 0.3),
-    object_yaw_rad: float = 0.4,
     conditions: Conditions | None = None,
     frame_index: int = 0,
+    **scene: Any,
 ) -> RenderedFrame:
-    """The object seen at ``pixel`` with an edge (marker) / diameter (buoy) of about ``size_px``."""
-    cam, obj = scene_poses(pixel, size_px, detector, camera, t_s, attitude_rad, object_yaw_rad)
-    return renderer(detector, camera).render(t_s, cam, obj, ExposureControls(), conditions or Conditions(), frame_index)
+    """The object seen at ``pixel`` with an edge (marker) / diameter (buoy) of about ``size_px``; ``scene``: the
+    ``detector``, ``camera``, time ``t_s``, camera ``attitude_rad`` and ``object_yaw_rad`` (``scene_poses``)."""
+    cam, obj = scene_poses(pixel, size_px, **scene)
+    render = renderer(scene.get("detector", MARKER), scene.get("camera", CAMERA)).render
+    return render(scene.get("t_s", T_S), cam, obj, ExposureControls(), conditions or Conditions(), frame_index)
 
 
 def scene_poses(
@@ -50,7 +50,7 @@ def scene_poses(
     size_px: float,
     detector: DetectorSettings = MARKER,
     camera: CameraSettings = CAMERA,
-    t_s: float = 10.0,
+    t_s: float = T_S,
     attitude_rad: tuple[float, float, float] = (0.05, -0.08, 0.3),
     object_yaw_rad: float = 0.4,
 ) -> tuple[Pose, Pose]:
