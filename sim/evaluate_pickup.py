@@ -128,14 +128,21 @@ def _empty(outcome: str, reason: str) -> dict[str, Any]:
     }  # fmt: skip
 
 
-async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: Path | None) -> dict[str, Any]:
-    settings = inputs.settings
+def run_settings(sc: dict[str, Any], cfg: EvalConfig, settings: Settings) -> Settings:
+    """The evaluation's settings as scenario ``sc`` flies them with ``cfg``."""
     # the operator sets the fence around the operating area: the objects start 40-80 m out and drift up to 1 m/s
     # for minutes (the default 100 m fence stops the vehicle following most of the faster ones)
     envelope = settings.envelope.model_copy(update={"geofence_radius_m": EVAL_GEOFENCE_M})
     # the operator knows what floats out there: the detector for it (as ``app.main --object``)
     detector = settings.detector.model_copy(update={"kind": "buoy" if sc["object_kind"] == "buoy" else "aruco"})
-    settings = settings.model_copy(update={"envelope": envelope, "detector": detector})
+    camera = settings.camera
+    if cfg.camera_f_px is not None:  # the hardware what-if of a configuration (``seapick-stock-lens``)
+        camera = camera.model_copy(update={"fx_px": cfg.camera_f_px, "fy_px": cfg.camera_f_px})
+    return settings.model_copy(update={"envelope": envelope, "detector": detector, "camera": camera})
+
+
+async def _fly(sc: dict[str, Any], cfg: EvalConfig, inputs: RunInputs, run_dir: Path | None) -> dict[str, Any]:
+    settings = run_settings(sc, cfg, inputs.settings)
     profile = SIM_PROFILES[sc["profile"]]
     wind = WindConfig(mean_mps=sc["wind_mps"], from_deg=sc["wind_from_deg"], gust_sigma_mps=sc["gust_sigma_mps"])
     vehicle = InProcessVehicle(

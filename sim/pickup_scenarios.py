@@ -22,9 +22,11 @@ compensation, full-frame detection); ``seapick-held`` is seapick triangulating i
 the radar's last height, held, rather than at the height the object's apparent size gives (``fix_height_from_size``
 false: the default until 2026-12-01); ``seapick-lean`` is seapick turning so that
 its mean lean lies along the image's wider side (``lean_yaw_min_tilt_deg``); ``seapick-wide`` is seapick with
-the wave filter's oscillators on to 3.4·ω_p (``wave_oscillators``). Each is told the scenario's sea
-state: the wave filter takes its Hs and Tp from it, the constant-velocity filter the process noise tuned for it
-(``CV_TUNED_Q``; the thesis set Q from configuration parameters). Both matter: on a calm sea (10 runs, seed 1)
+the wave filter's oscillators on to 3.4·ω_p (``wave_oscillators``); ``seapick-stock-lens`` is seapick on the
+camera's stock 65° lens rather than the settings' wide one (hardware, not the app: ``camera_f_px``). Each is told
+the scenario's sea state: the wave filter takes its Hs and Tp from it, the constant-velocity filter the process
+noise tuned for it (``CV_TUNED_Q``; the thesis set Q from configuration parameters). Both matter: on a calm sea
+(10 runs, seed 1)
 the thesis configuration with a fixed Q and seapick's gate picked up 0 of 10, with the tuned Q and the gate 1 of
 10 (its uncompensated latency throws fixes outside the gate of a confident filter, again and again, until the
 lock is lost), with the tuned Q and no gate 9 of 10.
@@ -78,6 +80,7 @@ class EvalConfig:
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
     height_from_size: bool = True  # low down, the height from the object's apparent size (``fix_height_from_size``)
     wave_oscillators: str = "standard"  # the wave filter's bank (``MissionParams.wave_oscillators``)
+    camera_f_px: float | None = None  # a hardware what-if: the lens's focal length, px (None: the settings')
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -105,6 +108,11 @@ CONFIGS: dict[str, EvalConfig] = {
     # seapick with the wave filter's oscillators on to 3.4·ω_p; not the default yet
     "seapick-wide": EvalConfig(
         "seapick-wide", "wave", latency_compensation=True, full_frame_detection=False, wave_oscillators="wide"
+    ),
+    # seapick on the camera's stock lens, 65° × 51° (fx = fy = 1000 px): the default until 2026-12-04, when the
+    # settings took a 94° × 77° lens (600 px)
+    "seapick-stock-lens": EvalConfig(
+        "seapick-stock-lens", "wave", latency_compensation=True, full_frame_detection=False, camera_f_px=1000.0
     ),
 }
 

@@ -21,7 +21,7 @@ from app.missions.pickup_feeds import PickupFeeds
 from app.settings import load_settings
 from sim import evaluate_cli
 from sim.evaluate_jobs import run_jobs
-from sim.evaluate_pickup import OUTCOMES, mission_params
+from sim.evaluate_pickup import OUTCOMES, mission_params, run_settings
 from sim.evaluate_report import summarise, table
 from sim.inproc import InProcessVehicle
 from sim.pickup_eval_world import CLUTTER_KINDS, EvalPickupWorld
@@ -355,14 +355,31 @@ def test_a_glyph_metres_off_the_tracked_marker_does_not_hide_it_but_hides_it_fro
         seen = world._largest_seen(0.0, truth, obj)
         return seen.corners_px is not None
 
-    assert not seen_from(42.0, 12.0)  # both in view, nothing tracked: no detection
+    # from 8 m the 0.20 m glyph spans 15 px on the settings' 600 px lens (decodable: ≥ 14 px), the marker 22 px
+    assert not seen_from(42.0, 8.0)  # both in view, nothing tracked: no detection
     assert world._tracked_ne_m is None and world.glyph_frames == 0
-    assert seen_from(40.0, 3.0)  # low over the marker: the glyph is out of view
+    assert seen_from(40.0, 3.0)  # low over the marker: the glyph (4 m off) is out of view (3.2 m at most)
     assert world._tracked_ne_m == (float(obj[0]), float(obj[1]))
-    assert seen_from(42.0, 12.0)  # both in view again, but the marker is tracked
+    assert seen_from(42.0, 8.0)  # both in view again, but the marker is tracked
     assert world.glyph_frames == 0
     world._tracked_ne_m = None  # the track lost: a fresh search sees the ID twice
-    assert not seen_from(42.0, 12.0)
+    assert not seen_from(42.0, 8.0)
+
+
+def test_the_stock_lens_configuration_flies_the_1000_px_lens_and_the_others_the_settings_lens():
+    """``seapick-stock-lens`` changes the camera's focal length and nothing else; the geometric camera sees with it."""
+    settings = load_settings()
+    sc = sample_scenario(SEED, 0, 3)
+    flown = {name: run_settings(sc, cfg, settings) for name, cfg in CONFIGS.items()}
+    assert settings.camera.fx_px == settings.camera.fy_px == 600.0
+    assert {name: (s.camera.fx_px, s.camera.fy_px) for name, s in flown.items()} == {
+        name: (1000.0, 1000.0) if name == "seapick-stock-lens" else (600.0, 600.0) for name in CONFIGS
+    }
+    stock, seapick = flown["seapick-stock-lens"], flown["seapick"]
+    assert stock.model_copy(update={"camera": seapick.camera}) == seapick
+    scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.0, object_start_ne_m=(40.0, 20.0))
+    world = EvalPickupWorld(InProcessVehicle(seed=1, wind=WindConfig.off()), scenario, stock, "none")
+    assert world.fx_px == 1000.0
 
 
 @pytest.mark.parametrize("sea_state", sorted(CV_TUNED_Q))

@@ -1,7 +1,8 @@
-"""The pickup searches as high as its detector still finds the object (``search_object_px``): a printed 0.30 m
-marker from 15 m (20 px; the marker detector found it in 60 of 60 rendered frames from there), a 0.15 m buoy from
-10 m (15 px; the buoy detector's full-frame search found it in 90 % of rendered frames from 10 m, 3 % from 12 m).
-Higher is a wider strip of sea: a faster search."""
+"""The pickup searches as high as its detector still finds the object (``search_object_px``, 15 px): with the
+settings' 600 px lens a printed 0.30 m marker from 12 m, a 0.15 m buoy from 6 m (on the stock 1000 px lens: 15 m
+— the cap, 20 px — and 10 m; the marker detector found the marker in 60 of 60 rendered frames at 20 px, the buoy
+detector's full-frame search the buoy in 90 % of rendered frames at 15 px, 3 % at 12.5 px). Higher is a wider strip
+of sea: a faster search."""
 
 from __future__ import annotations
 
@@ -24,11 +25,11 @@ def _with(table, **params):
 @pytest.mark.parametrize(
     ("kind", "params", "expected_m"),
     [
-        ("aruco", {}, 15.0),  # 1000 px × 0.30 m / 15 px = 20 m, capped at search_altitude_m
-        ("aruco", {"search_object_px": 25.0}, 12.0),  # 1000 × 0.30 / 25
+        ("aruco", {}, 12.0),  # 600 px × 0.30 m / 15 px, under search_altitude_m (15 m)
+        ("aruco", {"search_object_px": 25.0}, 7.2),  # 600 × 0.30 / 25
         ("aruco", {"search_altitude_m": 9.0}, 9.0),  # the cap
-        ("buoy", {}, 10.0),  # 1000 × 0.15 / 15
-        ("buoy", {"search_object_px": 100.0}, 3.0),  # 1.5 m would be below the parameter's floor
+        ("buoy", {}, 6.0),  # 600 × 0.15 / 15
+        ("buoy", {"search_object_px": 100.0}, 3.0),  # 0.9 m would be below the parameter's floor
         ("aruco", {"search_object_px": None, "search_altitude_m": 10.0}, 10.0),  # unset: the parameter as it is
     ],
 )
@@ -46,13 +47,13 @@ def test_other_missions_are_left_alone():
     assert resolve_search_altitude(circle, load_settings()) is circle
 
 
-@pytest.mark.parametrize(("kind", "detector", "expected_m"), [("marker", "aruco", 15.0), ("buoy", "buoy", 10.0)])
+@pytest.mark.parametrize(("kind", "detector", "expected_m"), [("marker", "aruco", 12.0), ("buoy", "buoy", 6.0)])
 @pytest.mark.looptime(noop_cycles=2)
 async def test_the_vehicle_searches_at_the_height_for_its_object_and_still_picks_it_up(kind, detector, expected_m):
     """From the vehicle's side: its height over the sea when the search starts, and the run's log says why."""
     settings = load_settings()
     settings = settings.model_copy(update={"detector": settings.detector.model_copy(update={"kind": detector})})
-    # the object 15 m past the search's start, out of the view on arrival (half of it at most 9.6 m from 15 m): found
+    # the object 15 m past the search's start, out of the view on arrival (half of it at most 12.8 m from 12 m): found
     # in SEARCH, not on the way there. (25 m past it, the object drifted out of the 30 m search area before the
     # square came round: it was found, or not, by a last glimpse from the pattern's end, 12 m off, in a corner.)
     scenario = PickupScenario(seed=1, sea_state=0, current_mps=0.1, object_kind=kind, object_start_ne_m=(55.0, 20.0))
