@@ -224,6 +224,14 @@ def grab_settled(ctx: GuardContext) -> bool:
     return ctx.estimates.progress.get("gripper_closed_for_s", -1.0) >= GRAB_SETTLE_S
 
 
+def lock_renewed(ctx: GuardContext) -> bool:
+    """The filter's lock began after this state was entered: the estimate escaped onto fixes it had refused (the
+    object moved while unseen — or clutter: a same-ID print 3.6 m off the marker, in the middle of a descent), or a
+    lost lock was confirmed anew. A descent goes on only over the object it began over: back to TRACK, which
+    descends again once the new lock has converged for ``descend_converged_s`` right above it."""
+    return ctx.estimates.progress.get("lock_age_s", math.inf) < ctx.time_in_state_s
+
+
 def grab_gone_blind(ctx: GuardContext) -> bool:
     """GRAB gave up before the water: its newest fix grew older than ``grab_blind_max_s`` on the way down."""
     return ctx.estimates.progress.get("grab_gone_blind", 0.0) >= 1.0
@@ -305,6 +313,7 @@ GUARDS: dict[str, Guard] = {
         touchdown,
         grab_settled,
         grab_gone_blind,
+        lock_renewed,
         grab_failed,
         grab_failed_finally,
         object_in_gripper,

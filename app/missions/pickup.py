@@ -17,7 +17,10 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    height over the sea *under the vehicle*, which differs from the sea under the object by up to the waves'
    height — a relative error that grows as the vehicle comes down. From 10 m in sea state 2 (±0.25 m) a
    detection must be within ±17.5 % of the marker's size: a same-ID print of 0.2 m (20 px, ratio 0.67–0.73
-   on rendered frames) is refused, the marker itself (0.93–1.0) is not. A buoy is a sphere of the detector's
+   on rendered frames) is refused, the marker itself (0.93–1.0) is not. Where the radar measures the sea now, the
+   height's bound is the local one instead (twice the fix's height σ: the sea's slope over the distance from
+   under the vehicle, at least ``radar_height_std_m``; ``fix_checks.checked_fix``): with the whole wave height
+   the same print passed below 3.4 m at sea state 3. A buoy is a sphere of the detector's
    ``buoy_diameter_m`` (``sphere_size_ratio``): a round bright spot of the wrong size is no buoy. With
    ``height_from_size`` (the pickup's default), a detection where the radar measures no sea now (below its first
    range, low over the object: its last height, held while the vehicle comes down, was 0.26 m high at 0.31 m and
@@ -32,7 +35,8 @@ A detection becomes a fix only if it passes, in order (each rejection counted by
    starts over.
 
 ``snapshot`` freezes the estimate for the guards: the object predicted to now, its covariance, the fix age,
-how long the filter has counted as converged (position σ ≤ ``converged_sigma_m`` without a break) and the
+how long the filter has counted as converged (position σ ≤ ``converged_sigma_m`` without a break, on the lock that
+holds now), how old that lock is (``progress['lock_age_s']``) and the
 height above the sea. Pure: no asyncio, no clock reads.
 """
 
@@ -113,6 +117,7 @@ class PickupEstimates:
         self._last_fix_t_s: float | None = None
         self.confirmation = LockConfirmation(self.checks)
         self._converged_since_s: float | None = None
+        self._lock_t_s: float | None = None  # the capture time of the fix the filter's current lock began with
         # where SEARCH searches, at ``datum_t_s`` (moves to the last estimate on a loss), drifting at
         # ``search_drift_ne_mps`` from then on
         self.search_centre_ne_m = search_centre_ne_m
@@ -289,7 +294,11 @@ class PickupEstimates:
                 self.fix_log.append((t_s, n_m, e_m, "confirming"))
                 return self._reject("confirming")
             self.filter.reset()
+        inits = self.filter.counts["init"]
         result = self.filter.update(obs)
+        if self.filter.counts["init"] != inits:  # a new lock (confirmed, or the filter escaped onto this fix):
+            self._lock_t_s = t_s  # its convergence counts from now, not from the lock it replaced
+            self._converged_since_s = None
         if not result.accepted:
             self.fix_log.append((t_s, n_m, e_m, f"filter_{result.reason}"))
             return self._reject(f"filter_{result.reason}")
@@ -368,6 +377,7 @@ class PickupEstimates:
             "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
             "final_descent_given_up": 1.0 if self.final_descent_given_up else 0.0,
             "grab_gone_blind": 1.0 if self.grab_gone_blind else 0.0,
+            "lock_age_s": math.inf if self._lock_t_s is None else t_s - self._lock_t_s,
         }
         falling = self.water_falling_mps(t_s)
         if falling is not None:

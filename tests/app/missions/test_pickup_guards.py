@@ -9,6 +9,7 @@ from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot
 from app.missions.estimates import Estimates
 from app.missions.guards import (
     GuardContext,
+    lock_renewed,
     object_beyond_fence,
     object_in_gripper,
     pickup_time_up,
@@ -152,3 +153,13 @@ def test_the_pickup_time_limit_counts_from_the_first_flying_state():
     assert on_deck.airborne_for_s is None and not pickup_time_up(on_deck)
     assert not pickup_time_up(dataclasses.replace(on_deck, airborne_for_s=limit_s - 1.0))
     assert pickup_time_up(dataclasses.replace(on_deck, airborne_for_s=limit_s + 1.0))
+
+
+def test_a_lock_begun_after_the_descent_began_sends_it_back_to_track():
+    """DESCEND goes on only over the object it began over: a lock that began since (the filter escaped onto other
+    fixes, or a lost lock was confirmed anew) is a new object until TRACK has seen it converge right above it."""
+    table = load_mission("pickup")
+    assert any(t.when == "lock_renewed" and t.to == "TRACK" for t in table.states["DESCEND"].transitions)
+    assert lock_renewed(ctx(est(progress={"lock_age_s": 1.9}), time_in_state_s=2.0))
+    assert not lock_renewed(ctx(est(progress={"lock_age_s": 2.1}), time_in_state_s=2.0))
+    assert not lock_renewed(ctx(est(), time_in_state_s=2.0))  # (no lock reported: nothing renewed)
