@@ -228,8 +228,13 @@ def lock_renewed(ctx: GuardContext) -> bool:
     """The filter's lock began after this state was entered: the estimate escaped onto fixes it had refused (the
     object moved while unseen — or clutter: a same-ID print 3.6 m off the marker, in the middle of a descent), or a
     lost lock was confirmed anew. A descent goes on only over the object it began over: back to TRACK, which
-    descends again once the new lock has converged for ``descend_converged_s`` right above it."""
-    return ctx.estimates.progress.get("lock_age_s", math.inf) < ctx.time_in_state_s
+    descends again once the new lock has converged for ``descend_converged_s`` right above it. GRAB's sink alike,
+    until the gripper has closed (then VERIFY looks for what it holds; its older closings count for nothing here)."""
+    progress = ctx.estimates.progress
+    closed_for_s = progress.get("gripper_closed_for_s", -1.0)
+    if 0.0 <= closed_for_s <= ctx.time_in_state_s:  # closed in this state: what is in the gripper is VERIFY's to see
+        return False
+    return progress.get("lock_age_s", math.inf) < ctx.time_in_state_s
 
 
 def grab_gone_blind(ctx: GuardContext) -> bool:

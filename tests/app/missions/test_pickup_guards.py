@@ -163,3 +163,22 @@ def test_a_lock_begun_after_the_descent_began_sends_it_back_to_track():
     assert lock_renewed(ctx(est(progress={"lock_age_s": 1.9}), time_in_state_s=2.0))
     assert not lock_renewed(ctx(est(progress={"lock_age_s": 2.1}), time_in_state_s=2.0))
     assert not lock_renewed(ctx(est(), time_in_state_s=2.0))  # (no lock reported: nothing renewed)
+
+
+def test_a_lock_begun_during_the_grabs_sink_sends_it_back_until_the_gripper_has_closed():
+    """GRAB's sink follows the estimate as DESCEND does: a new lock before the gripper closed sends it back to
+    TRACK; once it closed in this state, VERIFY is the one to look at what it holds (an older closing, from a grab
+    before, counts for nothing)."""
+    table = load_mission("pickup")
+    grab = [t.when for t in table.states["GRAB"].transitions]
+    assert grab.index("lock_renewed") < grab.index("grab_settled")
+    assert table.states["GRAB"].transitions[grab.index("lock_renewed")].to == "TRACK"
+
+    def renewed(lock_age_s: float, gripper_closed_for_s: float) -> bool:
+        progress = {"lock_age_s": lock_age_s, "gripper_closed_for_s": gripper_closed_for_s}
+        return lock_renewed(ctx(est(progress=progress), time_in_state_s=1.0, state="GRAB"))
+
+    assert renewed(0.4, -1.0)  # a lock 0.4 s old, 1 s into GRAB, the gripper open
+    assert not renewed(0.4, 0.2)  # … the gripper closed 0.2 s ago: VERIFY's
+    assert renewed(0.4, 30.0)  # … closed 30 s ago, in a grab before this one
+    assert not renewed(1.5, -1.0)  # the lock older than this GRAB

@@ -18,6 +18,7 @@ from app.flight import fly_mission
 from app.messages import FlightMode
 from app.missions.table import load_mission
 from app.offboard.guidance import ConstantBearingParams, approach_speed_mps
+from app.report import read_jsonl
 from app.settings import Settings, load_settings
 from sim.airframes import SIM_PROFILES
 from sim.inproc import InProcessVehicle
@@ -224,6 +225,52 @@ async def test_grab_blind_too_long_before_the_water_climbs_back_without_closing_
     assert all(g["t_s"] > blind["end_s"] for g in world.outcome.grabs)  # the gripper never closed while blind
     assert all(c["t_s"] > blind["end_s"] for c in world.outcome.contacts)  # nor did it touch the water
     assert flight.result.outcome == "picked_up" and world.outcome.caught and flight.figures["retries"] == 0
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_a_new_lock_during_the_grabs_sink_sends_it_back_up_before_the_water(tmp_path):
+    """GRAB's sink follows the estimate down blind-ish: if the filter's lock is renewed on the way (here the camera
+    sees the marker 0.5 m to the side for 2 s — a same-ID print, the real one out of view — and the filter escapes
+    onto it), the sink is given up before the water as DESCEND's would be (``lock_renewed`` → TRACK), the gripper
+    left open, and the pickup starts over on the object. Judged from the simulator's side: no grab, no contact
+    with the water while the print was seen; the vehicle climbed; the object picked up in the end."""
+    settings = load_settings()
+    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
+    world = PickupWorld(vehicle, PickupScenario(seed=1, sea_state=0, current_mps=0.1), settings)
+    runners, spell, offset_ne_m = [], {}, [0.0, 0.0, 0.0]
+    seen_at = world._largest_seen
+    world._largest_seen = lambda t_s, truth, centre: seen_at(
+        t_s, truth, tuple(float(c) + d for c, d in zip(centre, offset_ne_m, strict=True))
+    )
+
+    async def print_in_view():
+        while not runners or runners[0].state != "GRAB":  # noqa: ASYNC110
+            await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
+        spell["t_s"] = asyncio.get_running_loop().time()
+        offset_ne_m[0] = 0.5
+        await asyncio.sleep(2.0)
+        offset_ne_m[0] = 0.0
+        spell["end_s"] = asyncio.get_running_loop().time()
+        spell["heights_m"] = [h for t, h, _, _ in world.samples if spell["t_s"] <= t <= spell["end_s"]]
+
+    watcher = asyncio.create_task(print_in_view())
+    table = load_mission("pickup")  # GRAB from 1 m over the mean sea: the sink is long enough to see the lock renewed
+    table = table.model_copy(update={"params": table.params.model_copy(update={"touchdown_height_m": 1.0})})
+    events = EventLog(tmp_path / "events.jsonl")
+    flight = await fly_mission(
+        vehicle, table, settings, LoopClock(), events, on_start=runners.append, sensors=[world.sensors]
+    )
+    watcher.cancel()
+    events.close()
+    left = [e for e in read_jsonl(tmp_path / "events.jsonl") if e["kind"] == "state" and e["from"] == "GRAB"]
+    print(left, flight.result.states_visited, world.outcome.grabs, world.outcome.contacts, spell)
+    assert left[0]["reason"] == "lock_renewed" and left[0]["to"] == "TRACK"
+    assert spell["t_s"] < left[0]["t_s"] < spell["end_s"]
+    assert all(not spell["t_s"] <= g["t_s"] <= spell["end_s"] for g in world.outcome.grabs)  # gripper kept open
+    assert all(not spell["t_s"] <= c["t_s"] <= spell["end_s"] for c in world.outcome.contacts)  # off the water
+    assert min(spell["heights_m"]) > 0.05 and spell["heights_m"][-1] > min(spell["heights_m"]) + 0.3  # climbing
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+    assert all(c["error_m"] <= world.scenario.capture_radius_m for c in world.outcome.contacts)
 
 
 @pytest.mark.parametrize(("seed", "kind"), [(1, "marker"), (2, "marker"), (3, "marker"), (1, "buoy"), (2, "buoy")])
