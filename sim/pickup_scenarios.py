@@ -22,7 +22,8 @@ compensation, full-frame detection); ``seapick-held`` is seapick triangulating i
 the radar's last height, held, rather than at the height the object's apparent size gives (``fix_height_from_size``
 false: the default until 2026-12-01); ``seapick-lean`` is seapick turning so that
 its mean lean lies along the image's wider side (``lean_yaw_min_tilt_deg``); ``seapick-wide`` is seapick with
-the wave filter's oscillators on to 3.4·ω_p (``wave_oscillators``); ``seapick-stock-lens`` is seapick on the
+the wave filter's oscillators on to 3.4·ω_p (``wave_oscillators``), ``seapick-fine`` with its fine bank (14 narrower
+oscillators over 0.6–3.0·ω_p); ``seapick-stock-lens`` is seapick on the
 camera's stock 65° lens rather than the settings' wide one (hardware, not the app: ``camera_f_px``). Each is told
 the scenario's sea state: the wave filter takes its Hs and Tp from it, the constant-velocity filter the process
 noise tuned for it (``CV_TUNED_Q``; the thesis set Q from configuration parameters). Both matter: on a calm sea
@@ -108,6 +109,10 @@ CONFIGS: dict[str, EvalConfig] = {
     # seapick with the wave filter's oscillators on to 3.4·ω_p; not the default yet
     "seapick-wide": EvalConfig(
         "seapick-wide", "wave", latency_compensation=True, full_frame_detection=False, wave_oscillators="wide"
+    ),
+    # seapick with the wave filter's fine bank: 14 narrower oscillators over 0.6-3.0·ω_p
+    "seapick-fine": EvalConfig(
+        "seapick-fine", "wave", latency_compensation=True, full_frame_detection=False, wave_oscillators="fine"
     ),
     # seapick on the camera's stock lens, 65° × 51° (fx = fy = 1000 px): the default until 2026-12-04, when the
     # settings took a 94° × 77° lens (600 px)

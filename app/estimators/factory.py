@@ -14,7 +14,7 @@ from app.estimators.target_filter import LinearTargetFilter
 from app.estimators.wave_filter import OSCILLATOR_BANKS, WaveFilter
 
 TargetFilterKind = Literal["constant_velocity", "wave"]
-WaveOscillators = Literal["standard", "wide"]  # ``OSCILLATOR_BANKS``
+WaveOscillators = Literal["standard", "wide", "fine"]  # ``OSCILLATOR_BANKS``
 
 
 class TargetFilterChoice(Protocol):
@@ -54,10 +54,12 @@ def make_target_filter(choice: TargetFilterChoice) -> LinearTargetFilter:
         return ConstantVelocityFilter(choice.cv_q_pos_m2ps, choice.cv_q_vel_m2ps3, innovation_gate=gate)
     sea = SEA_STATES[choice.sea_state]
     elevation_std_m = choice.wave_elevation_std_m if choice.wave_elevation_std_m > 0.0 else None
+    bank = OSCILLATOR_BANKS[choice.wave_oscillators]
     return WaveFilter(
         sea.hs_m,
         sea.tp_s,
-        OSCILLATOR_BANKS[choice.wave_oscillators],
+        bank.ratios,
+        bank.damping,
         q_current_m2ps3=choice.wave_drift_q_m2ps3,
         innovation_gate=choice.innovation_gate,
         elevation_std_m=elevation_std_m,

@@ -42,8 +42,8 @@ class MissionParams(BaseModel):
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
     wave_oscillators: WaveOscillators = Field(
         "standard",
-        description="wave filter: its oscillators at 0.7-2.3 times the peak frequency (standard), or on to 3.4 "
-        "(wide: two more for the short waves; not the default yet, README)",
+        description="wave filter: its oscillators at 0.7-2.3 times the peak frequency (standard), on to 3.4 "
+        "(wide: two more for the short waves), or 14 narrower ones over 0.6-3.0 (fine; README)",
     )
     wave_elevation_std_m: float = Field(
         0.0,

@@ -428,6 +428,11 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
         assert len(wide.omegas) == len(wave.omegas) + 2 == 10
         assert wide.omegas[-1] / wide.omegas[2] == pytest.approx(3.4)
         assert wave.omegas[-1] / wave.omegas[2] == pytest.approx(2.3)
+    # seapick-fine's: 14 narrower oscillators (damping 0.03 against 0.1) over 0.6-3.0·ω_p
+    fine = make_target_filter(base.model_copy(update=mission_params(sc, CONFIGS["seapick-fine"])))
+    assert isinstance(fine, WaveFilter) and fine.damping == 0.03 and wave.damping == wide.damping == 0.1
+    if sea_state > 0:
+        assert len(fine.omegas) == 14 and fine.omegas[-1] / fine.omegas[0] == pytest.approx(3.0 / 0.6)
 
 
 def test_a_run_flies_the_same_with_its_report_as_without(tmp_path):

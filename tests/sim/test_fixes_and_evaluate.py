@@ -12,9 +12,9 @@ import pytest
 
 from app.estimators.cv_filter import ConstantVelocityFilter
 from app.estimators.sea_state import SEA_STATES
-from app.estimators.wave_filter import WaveFilter
+from app.estimators.wave_filter import OSCILLATOR_BANKS, WaveFilter
 from sim.evaluate import prediction_errors
-from sim.fixes import make_fixes, triangulation_cov
+from sim.fixes import FixConfig, make_fixes, triangulation_cov
 from sim.sea import FloatingObject, SeaConfig, SeaWorld
 from tests.e2e.cliutil import ROOT
 
@@ -64,6 +64,26 @@ def test_wave_filter_beats_constant_velocity_at_one_second_in_sea_state_3(ss3):
         for q_pos, q_vel in ((1.0, 1e-9), (0.1, 1e-3), (0.01, 0.1))
     )
     assert np.percentile(wave, 95) < 0.65 * best_cv
+
+
+@pytest.mark.parametrize("sea_state", [2, 3])
+def test_the_fine_bank_predicts_the_object_better_than_the_standard_one_low_over_it(sea_state):
+    """Low over the object (1 m, fixes at 15 Hz, a few millimetres off), where the last half second is flown
+    blind: the fine bank (14 narrower oscillators over 0.6-3.0·ω_p) predicts it 0.5 s ahead better than the
+    standard one (8 over 0.7-2.3·ω_p), which misses most of the short waves' velocity. Measured: p90 0.099 against
+    0.119 m at sea state 2, 0.228 against 0.248 m at sea state 3 (seed 4)."""
+    sea = SeaWorld(SeaConfig(sea_state=sea_state), seed=4)
+    obj = FloatingObject(sea)
+    low = FixConfig(height_m=1.0, fps_min_hz=15.0, fps_max_hz=15.0, false_rate=0.0, late_rate=0.0, mean_off_s=0.0,
+                    offset_std_m=0.05, radar_std_m=0.01)  # fmt: skip
+    fx, ss = make_fixes(sea, obj, 120.0, seed=4, cfg=low), SEA_STATES[sea_state]
+    p90 = {}
+    for name in ("standard", "fine"):
+        bank = OSCILLATOR_BANKS[name]
+        errors = prediction_errors(WaveFilter(ss.hs_m, ss.tp_s, bank.ratios, bank.damping), fx, obj, (0.5,))[0.5]
+        p90[name] = float(np.percentile(errors, 90))
+    print(f"sea state {sea_state}: p90 at 0.5 s {p90}")
+    assert p90["fine"] < 0.95 * p90["standard"]
 
 
 def test_cli_json_has_the_promised_keys():
