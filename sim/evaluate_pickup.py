@@ -237,6 +237,8 @@ def mission_params(sc: dict[str, Any], cfg: EvalConfig) -> dict[str, Any]:
     }
     if cfg.lean_yaw_min_tilt_deg is not None:
         params["lean_yaw_min_tilt_deg"] = cfg.lean_yaw_min_tilt_deg
+    if cfg.wave_drift_q_m2ps3 is not None:
+        params["wave_drift_q_m2ps3"] = cfg.wave_drift_q_m2ps3
     if cfg.target_filter == "constant_velocity":
         params["cv_q_pos_m2ps"], params["cv_q_vel_m2ps3"] = CV_TUNED_Q[sc["sea_state"]]
     if "drift_forecast_ne_mps" in sc:  # results.jsonl lines written before the forecast existed have none

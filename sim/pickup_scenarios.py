@@ -22,9 +22,10 @@ compensation, full-frame detection); ``seapick-held`` is seapick triangulating i
 the radar's last height, held, rather than at the height the object's apparent size gives (``fix_height_from_size``
 false: the default until 2026-12-01); ``seapick-lean`` is seapick turning so that
 its mean lean lies along the image's wider side (``lean_yaw_min_tilt_deg``); ``seapick-wide`` is seapick with
-the wave filter's oscillators on to 3.4·ω_p (``wave_oscillators``), ``seapick-fine`` with its fine bank (14 narrower
-oscillators over 0.6–3.0·ω_p); ``seapick-stock-lens`` is seapick on the
-camera's stock 65° lens rather than the settings' wide one (hardware, not the app: ``camera_f_px``). Each is told
+the wave filter's standard oscillators and two more, on to 3.4·ω_p (``wave_oscillators``), ``seapick-standard``
+with those 8 alone, at 0.7–2.3·ω_p, and the slow drift (1e-6 m²/s³) — the wave filter until 2026-12-04; seapick's
+is the fine bank, 14 narrower ones over 0.6–3.0·ω_p, with a quicker drift (1e-4); ``seapick-stock-lens`` is seapick
+on the camera's stock 65° lens rather than the settings' wide one (hardware, not the app: ``camera_f_px``). Each is told
 the scenario's sea state: the wave filter takes its Hs and Tp from it, the constant-velocity filter the process
 noise tuned for it (``CV_TUNED_Q``; the thesis set Q from configuration parameters). Both matter: on a calm sea
 (10 runs, seed 1)
@@ -80,7 +81,8 @@ class EvalConfig:
     innovation_gate: bool = True
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
     height_from_size: bool = True  # low down, the height from the object's apparent size (``fix_height_from_size``)
-    wave_oscillators: str = "standard"  # the wave filter's bank (``MissionParams.wave_oscillators``)
+    wave_oscillators: str = "fine"  # the wave filter's bank (``MissionParams.wave_oscillators``; the mission's default)
+    wave_drift_q_m2ps3: float | None = None  # how fast its drift may change (``MissionParams``; None: the mission's)
     camera_f_px: float | None = None  # a hardware what-if: the lens's focal length, px (None: the settings')
 
     def as_dict(self) -> dict[str, Any]:
@@ -106,13 +108,19 @@ CONFIGS: dict[str, EvalConfig] = {
     "seapick-lean": EvalConfig(
         "seapick-lean", "wave", latency_compensation=True, full_frame_detection=False, lean_yaw_min_tilt_deg=5.0
     ),
-    # seapick with the wave filter's oscillators on to 3.4·ω_p; not the default yet
+    # seapick with the wave filter's standard oscillators and two more, on to 3.4·ω_p; not the default
     "seapick-wide": EvalConfig(
         "seapick-wide", "wave", latency_compensation=True, full_frame_detection=False, wave_oscillators="wide"
     ),
-    # seapick with the wave filter's fine bank: 14 narrower oscillators over 0.6-3.0·ω_p
-    "seapick-fine": EvalConfig(
-        "seapick-fine", "wave", latency_compensation=True, full_frame_detection=False, wave_oscillators="fine"
+    # seapick's wave filter as it was until 2026-12-04: the standard bank, 8 oscillators at 0.7-2.3·ω_p, and a drift
+    # that may change by 1e-6 m²/s³ (the fine bank's default: 1e-4)
+    "seapick-standard": EvalConfig(
+        "seapick-standard",
+        "wave",
+        latency_compensation=True,
+        full_frame_detection=False,
+        wave_oscillators="standard",
+        wave_drift_q_m2ps3=1e-6,
     ),
     # seapick on the camera's stock lens, 65° × 51° (fx = fy = 1000 px): the default until 2026-12-04, when the
     # settings took a 94° × 77° lens (600 px)

@@ -39,16 +39,18 @@ from app.estimators.target_filter import Array, LinearTargetFilter, ScalarMeasur
 
 # Oscillator frequencies as multiples of the sea state's peak ω_p. A Pierson–Moskowitz sea carries much of
 # its orbital displacement above the peak (the ω⁻⁵ tail), so the bank reaches 2.3·ω_p. Chosen on a tuning
-# seed (sim.evaluate, seed 7, sea states 2–4): 8 oscillators beat 3 and 6 at the 1-s horizon.
+# seed (sim.evaluate, seed 7, sea states 2–4): 8 oscillators beat 3 and 6 at the 1-s horizon. The missions' default
+# until 2026-12-04 ("standard"; now "fine", below).
 OSCILLATOR_RATIOS = (0.7, 0.85, 1.0, 1.15, 1.35, 1.6, 1.9, 2.3)
 # The bank on up to the simulated sea's band's top (3.5·ω_p): two more oscillators for the short waves (above 2·ω_p,
 # σ 0.22 of the 0.47 m/s orbital speed at sea state 3; an object the wind pushes through the water meets them
 # sooner, higher).
-# Not the default yet (README, *Evaluating*: more objects picked up in strong currents, more off-target contacts).
+# Not the default (README, *Evaluating*: more objects picked up in strong currents, more off-target contacts).
 WIDE_RATIOS = (*OSCILLATOR_RATIOS, 2.8, 3.4)
 # A finer bank: 14 oscillators spaced evenly in log ω over 0.6–3.0·ω_p (np.geomspace, to 3 decimals), each narrower
 # (damping 0.03): the short waves' velocity (above 2.3·ω_p) is most of what the standard bank misses. Chosen on
-# fix streams recorded low over the object in flight (seeds 21-23, 90 runs at sea states 2-3, README *Evaluating*).
+# fix streams recorded low over the object in flight (seeds 21-23, 90 runs at sea states 2-3, README *Evaluating*);
+# the missions' default since 2026-12-04.
 FINE_RATIOS = (0.6, 0.679, 0.769, 0.87, 0.985, 1.114, 1.261, 1.427, 1.615, 1.828, 2.069, 2.342, 2.651, 3.0)
 
 

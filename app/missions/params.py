@@ -41,9 +41,9 @@ class MissionParams(BaseModel):
     )
     sea_state: int = Field(3, ge=0, le=5, description="expected WMO sea state (sets the wave filter's Hs, Tp), code")
     wave_oscillators: WaveOscillators = Field(
-        "standard",
-        description="wave filter: its oscillators at 0.7-2.3 times the peak frequency (standard), on to 3.4 "
-        "(wide: two more for the short waves), or 14 narrower ones over 0.6-3.0 (fine; README)",
+        "fine",
+        description="wave filter: 14 narrow oscillators over 0.6-3.0 times the peak frequency (fine), or 8 at 0.7-2.3 "
+        "(standard, the default before 2026-12-04), or those and two more for the short waves, on to 3.4 (wide)",
     )
     wave_elevation_std_m: float = Field(
         0.0,
@@ -53,7 +53,7 @@ class MissionParams(BaseModel):
         "(radar), with this noise; 0 = off, m",
     )
     wave_drift_q_m2ps3: float = Field(
-        1e-6,
+        1e-4,
         ge=1e-9,
         le=0.1,
         description="wave filter: how fast the object's drift may change (the current; and the autopilot's own "

@@ -251,7 +251,7 @@ def test_a_mission_file_of_ones_own_flies_the_same_scenarios_and_a_bad_one_flies
     assert json.loads(done.stdout)["mission"] == str(mission)
 
     bad = tmp_path / "bad.yaml"
-    bad.write_text(source.replace("  wave_drift_q_m2ps3: 1.0e-6", "  wave_drift_q_m2ps3: 5.0", 1))
+    bad.write_text(source.replace("  wave_drift_q_m2ps3: 1.0e-4", "  wave_drift_q_m2ps3: 5.0", 1))
     bad_out = tmp_path / "bad-eval"
     done = subprocess.run(
         [sys.executable, "-m", "sim.evaluate", "--runs", "1", "--mission", str(bad), "--out", str(bad_out)],
@@ -418,21 +418,23 @@ def test_each_configuration_flies_its_filter_told_of_the_sea(sea_state):
     }
     assert checks == {"thesis": False, "seapick": True, "seapick-held": False, "seapick-lean": True}
     assert seapick.fix_height_from_size == base.fix_height_from_size  # seapick flies the mission's defaults
-    # seapick-wide's wave filter has two oscillators more, for the short waves (at 2.8 and 3.4·ω_p); a glassy sea
-    # has none
+    # seapick's wave filter is the mission's default, the fine bank: 14 narrower oscillators (damping 0.03 against
+    # 0.1) over 0.6-3.0·ω_p; seapick-standard's the 8 at 0.7-2.3·ω_p (the default before), seapick-wide's those and
+    # two more for the short waves (at 2.8 and 3.4·ω_p); a glassy sea has none
+    assert seapick.wave_oscillators == base.wave_oscillators == "fine"
+    assert seapick.wave_drift_q_m2ps3 == base.wave_drift_q_m2ps3 == 1e-4  # (the mission's; 1e-6 before the fine bank)
+    assert wave.q_current_m2ps3 == 1e-4
+    standard = make_target_filter(base.model_copy(update=mission_params(sc, CONFIGS["seapick-standard"])))
     wide = make_target_filter(base.model_copy(update=mission_params(sc, CONFIGS["seapick-wide"])))
-    assert isinstance(wide, WaveFilter) and wide.innovation_gate
+    assert isinstance(wide, WaveFilter) and wide.innovation_gate and isinstance(standard, WaveFilter)
+    assert wave.damping == 0.03 and standard.damping == wide.damping == 0.1 and standard.q_current_m2ps3 == 1e-6
     if sea_state == 0:
-        assert len(wide.omegas) == len(wave.omegas) == 0
+        assert len(wide.omegas) == len(standard.omegas) == len(wave.omegas) == 0
     else:
-        assert len(wide.omegas) == len(wave.omegas) + 2 == 10
+        assert len(wide.omegas) == len(standard.omegas) + 2 == 10 and len(wave.omegas) == 14
         assert wide.omegas[-1] / wide.omegas[2] == pytest.approx(3.4)
-        assert wave.omegas[-1] / wave.omegas[2] == pytest.approx(2.3)
-    # seapick-fine's: 14 narrower oscillators (damping 0.03 against 0.1) over 0.6-3.0·ω_p
-    fine = make_target_filter(base.model_copy(update=mission_params(sc, CONFIGS["seapick-fine"])))
-    assert isinstance(fine, WaveFilter) and fine.damping == 0.03 and wave.damping == wide.damping == 0.1
-    if sea_state > 0:
-        assert len(fine.omegas) == 14 and fine.omegas[-1] / fine.omegas[0] == pytest.approx(3.0 / 0.6)
+        assert standard.omegas[-1] / standard.omegas[2] == pytest.approx(2.3)
+        assert wave.omegas[-1] / wave.omegas[0] == pytest.approx(3.0 / 0.6)
 
 
 def test_a_run_flies_the_same_with_its_report_as_without(tmp_path):
