@@ -148,7 +148,6 @@ class PickupWorld:
             await (sleep_on(loop, delay_s) if delay_s > 0.0 else asyncio.sleep(0))
             t_s = loop.time()
             truth = self.vehicle.truth()
-            self._judge_grab(t_s, truth)
             o = self.object.state(t_s)
             for observe in self.frame_observers:
                 observe(t_s, truth, o)
@@ -173,6 +172,9 @@ class PickupWorld:
             sea_wd = float(sea_vel[2])
             self.samples.append((t_s, sea_down - p[2], truth.vel_ned_mps[2], sea_wd))
             self._note_contact(t_s, sea_down - p[2], p, o.pos_ned_m)
+            # after the contact: a gripper that closed since the last frame, with the vehicle now on the water, met
+            # the water too (judged first, a catch in the frame of the touchdown hid that touchdown)
+            self._judge_grab(t_s, truth)
             # a caught object hangs in the gripper, out of the camera's sea
             blind = self.outcome.caught or self.camera_blind
             if blind:
