@@ -231,12 +231,13 @@ def mission_params(sc: dict[str, Any], cfg: EvalConfig) -> dict[str, Any]:
         "target_filter": cfg.target_filter,
         "innovation_gate": cfg.innovation_gate,
         "fix_height_from_size": cfg.height_from_size,
-        "wave_oscillators": cfg.wave_oscillators,
         "sea_state": sc["sea_state"],
         "search_start_ne_m": start_ne_m,
     }
     if cfg.lean_yaw_min_tilt_deg is not None:
         params["lean_yaw_min_tilt_deg"] = cfg.lean_yaw_min_tilt_deg
+    if cfg.wave_oscillators is not None:
+        params["wave_oscillators"] = cfg.wave_oscillators
     if cfg.wave_drift_q_m2ps3 is not None:
         params["wave_drift_q_m2ps3"] = cfg.wave_drift_q_m2ps3
     if cfg.target_filter == "constant_velocity":

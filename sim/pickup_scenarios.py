@@ -81,8 +81,9 @@ class EvalConfig:
     innovation_gate: bool = True
     lean_yaw_min_tilt_deg: float | None = None  # the mission's heading policy (``MissionParams``): None holds it
     height_from_size: bool = True  # low down, the height from the object's apparent size (``fix_height_from_size``)
-    wave_oscillators: str = "fine"  # the wave filter's bank (``MissionParams.wave_oscillators``; the mission's default)
-    wave_drift_q_m2ps3: float | None = None  # how fast its drift may change (``MissionParams``; None: the mission's)
+    # the wave filter's bank and how fast its drift may change (``MissionParams``); None: the mission's
+    wave_oscillators: str | None = None
+    wave_drift_q_m2ps3: float | None = None
     camera_f_px: float | None = None  # a hardware what-if: the lens's focal length, px (None: the settings')
 
     def as_dict(self) -> dict[str, Any]:
