@@ -130,7 +130,9 @@ class DescendTarget(ObjectTarget):
                 self.model.final_descent_given_up = True  # place to grab (the guards), as after going blind
             self.height_m = max(self.height_m, self.safety_height_m)
             self.plunging = False
-        elif self.height_m <= final_m:
+        elif self.height_m <= final_m or self.plunging:
+            # (a final descent whose desired height the lead lifted over the final height — a vehicle rising with a
+            # crest — is still one: drifting off the object there turns it back too)
             off_m, slip_mps = self._off_the_object(t_s)
             over_it = off_m <= self.final_radius_m and slip_mps <= self.final_max_speed_mps
             seeing = t_s - self._fix_seen_s <= self.blind_gap_s
@@ -145,7 +147,7 @@ class DescendTarget(ObjectTarget):
                 self.plunging = False
                 self.go_arounds += 1
                 self.model.final_descent_given_up = True
-            elif not self.plunging and over_it and seeing and self._water_not_rising(t_s):
+            elif not self.plunging and over_it and seeing and self._water_not_rising(t_s, snap):
                 # (a stale estimate starts no final descent)
                 self.plunging, self._committed = True, False
                 self.model.final_descent_given_up = False
@@ -192,12 +194,16 @@ class DescendTarget(ObjectTarget):
             return True
         return snap.fix_age_s + max(0.0, over_m - self.touchdown_height_m) / self.speed_mps <= self.fresh_s
 
-    def _water_not_rising(self, t_s: float) -> bool:
+    def _water_not_rising(self, t_s: float, snap: Estimates) -> bool:
         """The water under the vehicle rises no faster than ``final_start_max_rise_mps`` (or the radar cannot
         tell): going down behind falling water, the vehicle meets it lower, as it rises again; going down as a
         crest rose, it met the crest high (0.4–0.9 m over the mean), where the object's orbit moves it fastest,
         just after the camera had lost it (sea state 3: 5 of 103 such contacts off the object, 0 of 255 on
-        crests lower than 0.4 m; README, *Evaluating*)."""
+        crests lower than 0.4 m; README, *Evaluating*). A radar gone silent right after a height closer than
+        ``crest_clearance_m`` is no "cannot tell": the crest has risen inside its first range (the rate is
+        unknown because the water is that close), and a final descent started there met it 0.27–0.28 m off."""
+        if snap.height_above_sea_m is None and self._water_held_close(t_s):
+            return False
         rise = self.model.sea_level.rise_rate_mps(t_s)
         return rise is None or rise <= self.final_start_max_rise_mps
 
@@ -213,11 +219,16 @@ class DescendTarget(ObjectTarget):
         close height means the crest came closer than its first range: that height stands in for the water's."""
         if radar_m is not None:
             self._close_water = (t_s, radar_m) if radar_m < self.crest_clearance_m else None
-        elif self._close_water is not None and t_s - self._close_water[0] <= CLOSE_WATER_HOLD_S:
-            radar_m = self._close_water[1]
+        elif self._water_held_close(t_s):
+            radar_m = self._close_water[1]  # type: ignore[index]
         if self.plunging or radar_m is None or vehicle_m is None or radar_m >= self.crest_clearance_m:
             return height_m
         return max(height_m, vehicle_m + self.crest_clearance_m - radar_m)
+
+    def _water_held_close(self, t_s: float) -> bool:
+        """The radar saw the water closer than ``crest_clearance_m`` within ``CLOSE_WATER_HOLD_S`` (and nothing
+        farther since): while it is silent, the water is taken to be that close, or closer."""
+        return self._close_water is not None and t_s - self._close_water[0] <= CLOSE_WATER_HOLD_S
 
     def _off_the_object(self, t_s: float) -> tuple[float, float]:
         """How far the vehicle is off the estimate (m, horizontal) and how fast it moves relative to it (m/s)."""

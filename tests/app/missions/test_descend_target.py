@@ -428,3 +428,44 @@ def test_the_final_part_starts_only_while_the_water_under_it_falls_when_asked(ma
         # the slope of the last 0.4 s lags the swell by 0.2 s and carries ~0.06 m/s of the radar's noise
         assert len(starts) > 100 and max(rises) < a_m * w * math.sin(w * 0.2) + 0.2
         assert min(rises) < -0.5  # it does start, behind the crests
+
+
+def test_a_final_descent_the_lead_lifted_over_the_final_height_still_turns_back_off_the_object():
+    """A vehicle rising with a crest (lifted clear of it, with inertia) drags its final descent's desired height up
+    with it (the lead): above the final height it is still a final descent, and drifting past the abort radius
+    turns it back. It did not (sea state 3, two ArduCopter runs): the desired height, 0.15 m over the final
+    height, held, the vehicle went on down as the crest came up and met it 0.27–0.28 m off the object."""
+    scene = Scene(crest_m=0.2)
+    target = descend(scene, final_max_lead_m=0.1)
+    t_s = fly(target, scene, 100.0, 7.0)  # over the object: into the final part
+    assert target.plunging and target.height_m < 1.0
+    scene.vehicle_height_m = 1.4  # the vehicle rises (and does not follow): the lead lifts the desired height
+    t_s = fly(target, scene, t_s, 0.2, follow=False)
+    assert target.plunging and target.height_m > target.final_height_now_m()
+    scene.vehicle_ne = (0.25, 0.0)  # past the abort radius
+    fly(target, scene, t_s, 0.1, follow=False)
+    assert not target.plunging and target.go_arounds == 1 and scene.final_descent_given_up
+
+
+@pytest.mark.parametrize("close_m", [0.5, None])
+def test_no_final_descent_starts_while_the_radar_is_silent_right_after_seeing_the_water_close(close_m):
+    """Silence right after a height closer than the crest clearance is a crest inside the radar's first range, not
+    a radar that cannot tell how the water moves: no final descent starts until that hold has passed (one that
+    did, met the crest 0.27–0.28 m off the object). Silence after the water well clear starts it at once."""
+    scene = Scene(crest_m=0.7)
+    target = descend(scene, crest_clearance_m=0.8, final_start_max_rise_mps=0.0)
+    scene.vehicle_ne = (0.15, 0.0)  # not over the object: it waits at the final height
+    t_s = fly(target, scene, 100.0, 10.0)
+    assert not target.plunging and scene.sea_level.rise_rate_mps(t_s) is None  # (no radar for 60 s: unknown)
+    scene.radar_m = 1.0 if close_m is None else close_m
+    t_s = fly(target, scene, t_s, DT)
+    scene.radar_m, scene.vehicle_ne = None, (0.0, 0.0)  # silent, and right over the object now
+    started_after_s, t0_s = None, t_s
+    for _ in range(round(1.5 / DT)):
+        t_s = fly(target, scene, t_s, DT, follow=False)
+        if target.plunging:
+            started_after_s = t_s - t0_s
+            break
+    print(f"close height {close_m}: the final descent started {started_after_s} s into the silence")
+    assert started_after_s is not None
+    assert started_after_s > 1.0 if close_m is not None else started_after_s <= 2 * DT
