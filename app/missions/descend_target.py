@@ -28,8 +28,10 @@ class DescendTarget(ObjectTarget):
     (``MeanSeaLevel.crest_m``: a vehicle waiting lower is met by a crest wherever it is) — is flown only right
     over the object: it starts within ``final_radius_m`` of the estimate, moving with it (relative horizontal speed
     at most ``final_max_speed_mps``: a vehicle that lags the object's wave orbit slides off it on the way down)
-    and, with ``final_start_max_rise_mps``, only while the water under it falls; drifting past
-    ``final_abort_radius_m``, climbs back to the final height and waits again. The last half metre or so is flown
+    and, with ``final_start_max_rise_mps``, only while the water under it falls (never while the radar is silent
+    right after seeing the water closer than ``crest_clearance_m``: a crest inside its first range); drifting past
+    ``final_abort_radius_m`` — also where the lead has lifted its desired height above the final height —
+    climbs back to the final height and waits again. The last half metre or so is flown
     blind (the camera's view there is smaller than the object's offset plus the tilt, and the estimate drifts off
     the object by decimetres a second): when no new fix has come for ``blind_gap_s``, the descent goes on only if
     the vehicle is then within ``final_radius_m`` of the estimate and moving with it, as at its start, and only
