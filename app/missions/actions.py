@@ -252,18 +252,34 @@ async def grab(io: MissionIO) -> None:
     sink = SinkTarget(m, io.boundary.telemetry, start_m, p.grab_sink_speed_mps, -p.grab_press_m)
     io.setpoints.engage(sink, allow_below_min=True, keep_integral=True)  # the same object as DESCEND's
     contact = WaterContact(io, now_s)
-    m.grab_gone_blind = False
+    m.grab_gone_blind = m.grab_gone_off = False
     while True:  # (polled: the telemetry and the loop clock are what it waits on)
         if io.now_s() - now_s >= p.grab_contact_timeout_s or contact.on_it():
             break
         if _blind_too_long(m, io.now_s(), p.grab_blind_max_s):
             m.grab_gone_blind = True  # (``grab_gone_blind``: climb back, no grab)
             return
+        if _off_the_estimate(io, m, p.grab_abort_offset_m):
+            m.grab_gone_off = True  # (``grab_gone_off``: climb back, no grab)
+            return
         await asyncio.sleep(CONTACT_POLL_S)
     pv = io.boundary.telemetry().pos_vel
     m.on_grab((pv.pos_ned_m[0], pv.pos_ned_m[1]) if pv is not None else m.last_estimate_ne_m or (math.nan, math.nan))
     await io.boundary.grip(True)
     m.gripper_closed_t_s = io.now_s()
+
+
+def _off_the_estimate(io: MissionIO, m: PickupEstimates, limit_m: float | None) -> bool:
+    """Sinking onto the water farther than ``limit_m`` (``grab_abort_offset_m``) from the estimate, horizontally: a
+    gust or a late fix has put the vehicle off the object, and the sink — blind, with the gripper under it — does not
+    win that back before the water (ArduCopter 0.10 m off as GRAB began, 0.22 m at the water 0.3 s later)."""
+    if limit_m is None:
+        return False
+    t_s = io.now_s()
+    pv, est = io.boundary.telemetry().pos_vel, m.estimate(t_s)
+    if pv is None or est is None:
+        return False
+    return math.hypot(pv.pos_ned_m[0] - est.pos_ned_m[0], pv.pos_ned_m[1] - est.pos_ned_m[1]) > limit_m
 
 
 def _blind_too_long(m: PickupEstimates, t_s: float, limit_s: float | None) -> bool:

@@ -107,7 +107,7 @@ class DescendTarget(ObjectTarget):
         self._t_s: float | None = None
         self._close_water: tuple[float, float] | None = None  # (t_s, m): the radar's newest height under the clearance
         model.final_descent_given_up = False
-        model.grab_gone_blind = False  # (set by a GRAB that gave up blind; GRAB comes only from here)
+        model.grab_gone_blind = model.grab_gone_off = False  # (set by a GRAB that gave up; GRAB comes only from here)
 
     def final_height_now_m(self) -> float:
         return max(self.final_height_m, self.model.sea_level.crest_m() + self.crest_margin_m)

@@ -242,6 +242,11 @@ def grab_gone_blind(ctx: GuardContext) -> bool:
     return ctx.estimates.progress.get("grab_gone_blind", 0.0) >= 1.0
 
 
+def grab_gone_off(ctx: GuardContext) -> bool:
+    """GRAB gave up before the water: the vehicle was farther than ``grab_abort_offset_m`` off the estimate."""
+    return ctx.estimates.progress.get("grab_gone_off", 0.0) >= 1.0
+
+
 def _seen_on_sea(ctx: GuardContext) -> bool:
     """Up at the verify height, the camera still fixes the object on the sea: the grab missed it."""
     h = ctx.estimates.height_above_sea_m
@@ -318,6 +323,7 @@ GUARDS: dict[str, Guard] = {
         touchdown,
         grab_settled,
         grab_gone_blind,
+        grab_gone_off,
         lock_renewed,
         grab_failed,
         grab_failed_finally,

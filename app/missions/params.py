@@ -220,6 +220,13 @@ class MissionParams(BaseModel):
     grab_contact_timeout_s: float = Field(
         3.0, ge=0.1, le=8.0, description="in GRAB, not on the water after this long: close the gripper anyway, s"
     )
+    grab_abort_offset_m: float | None = Field(
+        0.15,
+        ge=0.02,
+        le=2.0,
+        description="in GRAB, not yet on the water and this far off the estimate (horizontally): no grab, climb "
+        "back (null: off), m",
+    )
     grab_blind_max_s: float | None = Field(
         None,
         ge=0.1,

@@ -137,6 +137,7 @@ class PickupEstimates:
         self.grab_attempts = 0
         self.gripper_closed_t_s: float | None = None  # GRAB closed the gripper then (on the water)
         self.grab_gone_blind = False  # GRAB gave up: blind too long before the water (``grab_blind_max_s``)
+        self.grab_gone_off = False  # GRAB gave up: off the estimate before the water (``grab_abort_offset_m``)
         self.searches_after_loss = 0  # SEARCH begun around the last estimate of an object seen and lost
         self.grab_ne_m: tuple[float, float] | None = None  # where the vehicle was at the last grab
         self._grab_sighting_t_s: float | None = None  # the object seen on the sea near there, last at
@@ -377,6 +378,7 @@ class PickupEstimates:
             "radar_calibration_done": 0.0 if self.radar_calibration is None else 1.0,
             "final_descent_given_up": 1.0 if self.final_descent_given_up else 0.0,
             "grab_gone_blind": 1.0 if self.grab_gone_blind else 0.0,
+            "grab_gone_off": 1.0 if self.grab_gone_off else 0.0,
             "lock_age_s": math.inf if self._lock_t_s is None else t_s - self._lock_t_s,
         }
         falling = self.water_falling_mps(t_s)

@@ -9,6 +9,7 @@ from app.messages import PositionVelocityNed, TargetState, TelemetrySnapshot
 from app.missions.estimates import Estimates
 from app.missions.guards import (
     GuardContext,
+    grab_gone_off,
     lock_renewed,
     object_beyond_fence,
     object_in_gripper,
@@ -182,3 +183,16 @@ def test_a_lock_begun_during_the_grabs_sink_sends_it_back_until_the_gripper_has_
     assert not renewed(0.4, 0.2)  # … the gripper closed 0.2 s ago: VERIFY's
     assert renewed(0.4, 30.0)  # … closed 30 s ago, in a grab before this one
     assert not renewed(1.5, -1.0)  # the lock older than this GRAB
+
+
+def test_a_grab_given_up_off_the_estimate_goes_back_to_track():
+    """``grab_gone_off`` is GRAB's own report (the sink came farther than ``grab_abort_offset_m`` off the estimate
+    before the water): the mission file sends it back to TRACK, before the gripper's settling is looked at."""
+    table = load_mission("pickup")
+    grab = [t.when for t in table.states["GRAB"].transitions]
+    assert grab.index("grab_gone_off") < grab.index("grab_settled")
+    assert table.states["GRAB"].transitions[grab.index("grab_gone_off")].to == "TRACK"
+    assert table.params.grab_abort_offset_m == 0.15
+    assert grab_gone_off(ctx(est(progress={"grab_gone_off": 1.0}), state="GRAB"))
+    assert not grab_gone_off(ctx(est(progress={"grab_gone_off": 0.0}), state="GRAB"))
+    assert not grab_gone_off(ctx(est(), state="GRAB"))
