@@ -227,13 +227,11 @@ async def test_grab_blind_too_long_before_the_water_climbs_back_without_closing_
     assert flight.result.outcome == "picked_up" and world.outcome.caught and flight.figures["retries"] == 0
 
 
-@pytest.mark.looptime(noop_cycles=2)
-async def test_a_new_lock_during_the_grabs_sink_sends_it_back_up_before_the_water(tmp_path):
-    """GRAB's sink follows the estimate down blind-ish: if the filter's lock is renewed on the way (here the camera
-    sees the marker 0.5 m to the side for 2 s — a same-ID print, the real one out of view — and the filter escapes
-    onto it), the sink is given up before the water as DESCEND's would be (``lock_renewed`` → TRACK), the gripper
-    left open, and the pickup starts over on the object. Judged from the simulator's side: no grab, no contact
-    with the water while the print was seen; the vehicle climbed; the object picked up in the end."""
+async def fly_with_marker_moved_in_grab(tmp_path, offsets_n_m: list[float], hold_s: float, **params):
+    """The calm-sea pickup (seed 1), GRAB from 1 m over the mean sea (``touchdown_height_m``: the sink is long), and
+    the marker seen moved north as GRAB begins: by ``offsets_n_m`` in turn, one per 0.02 s, then ``hold_s`` at the
+    last, then back where it is. Returns the flight, the world, the states GRAB was left for (the event log's) and
+    the spell: its start ``t_s`` and end ``end_s``, the heights over the sea through it (the simulator's truth)."""
     settings = load_settings()
     vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
     world = PickupWorld(vehicle, PickupScenario(seed=1, sea_state=0, current_mps=0.1), settings)
@@ -243,19 +241,21 @@ async def test_a_new_lock_during_the_grabs_sink_sends_it_back_up_before_the_wate
         t_s, truth, tuple(float(c) + d for c, d in zip(centre, offset_ne_m, strict=True))
     )
 
-    async def print_in_view():
+    async def moved_in_view():
         while not runners or runners[0].state != "GRAB":  # noqa: ASYNC110
             await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
         spell["t_s"] = asyncio.get_running_loop().time()
-        offset_ne_m[0] = 0.5
-        await asyncio.sleep(2.0)
+        for offset_m in offsets_n_m:
+            offset_ne_m[0] = offset_m
+            await asyncio.sleep(0.02)
+        await asyncio.sleep(hold_s)
         offset_ne_m[0] = 0.0
         spell["end_s"] = asyncio.get_running_loop().time()
         spell["heights_m"] = [h for t, h, _, _ in world.samples if spell["t_s"] <= t <= spell["end_s"]]
 
-    watcher = asyncio.create_task(print_in_view())
-    table = load_mission("pickup")  # GRAB from 1 m over the mean sea: the sink is long enough to see the lock renewed
-    table = table.model_copy(update={"params": table.params.model_copy(update={"touchdown_height_m": 1.0})})
+    watcher = asyncio.create_task(moved_in_view())
+    table = load_mission("pickup")
+    table = table.model_copy(update={"params": table.params.model_copy(update={"touchdown_height_m": 1.0, **params})})
     events = EventLog(tmp_path / "events.jsonl")
     flight = await fly_mission(
         vehicle, table, settings, LoopClock(), events, on_start=runners.append, sensors=[world.sensors]
@@ -264,6 +264,17 @@ async def test_a_new_lock_during_the_grabs_sink_sends_it_back_up_before_the_wate
     events.close()
     left = [e for e in read_jsonl(tmp_path / "events.jsonl") if e["kind"] == "state" and e["from"] == "GRAB"]
     print(left, flight.result.states_visited, world.outcome.grabs, world.outcome.contacts, spell)
+    return flight, world, left, spell
+
+
+@pytest.mark.looptime(noop_cycles=2)
+async def test_a_new_lock_during_the_grabs_sink_sends_it_back_up_before_the_water(tmp_path):
+    """GRAB's sink follows the estimate down blind-ish: if the filter's lock is renewed on the way (here the camera
+    sees the marker 0.5 m to the side for 2 s — a same-ID print, the real one out of view — and the filter escapes
+    onto it), the sink is given up before the water as DESCEND's would be (``lock_renewed`` → TRACK), the gripper
+    left open, and the pickup starts over on the object. Judged from the simulator's side: no grab, no contact
+    with the water while the print was seen; the vehicle climbed; the object picked up in the end."""
+    flight, world, left, spell = await fly_with_marker_moved_in_grab(tmp_path, [0.5], 1.98)
     assert left[0]["reason"] == "lock_renewed" and left[0]["to"] == "TRACK"
     assert spell["t_s"] < left[0]["t_s"] < spell["end_s"]
     assert all(not spell["t_s"] <= g["t_s"] <= spell["end_s"] for g in world.outcome.grabs)  # gripper kept open
@@ -279,42 +290,14 @@ async def test_grabs_sink_off_the_estimate_climbs_back_before_the_water(tmp_path
     """GRAB's sink, blind with the gripper under it, does not win back a vehicle that has come off the estimate
     (ArduCopter pushed by a gust, a late fix moving the estimate): farther than ``grab_abort_offset_m`` off it, before
     the water, it gives the grab up (``grab_gone_off`` → TRACK) and the pickup starts over. Here the marker is seen
-    sliding 0.15 m aside over 0.5 s as GRAB begins (from 1 m over the calm sea, so the sink is long), the filter
-    following it, and the limit is 0.05 m (the mission's 0.15 m is for the sea-state-3 swell). Without the limit
-    the gripper closes on the way, off the object. Judged from the simulator's side: no grab, no contact between
-    the slide's start and GRAB's end; picked up in the end, every contact within the capture radius."""
-    settings = load_settings()
-    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
-    world = PickupWorld(vehicle, PickupScenario(seed=1, sea_state=0, current_mps=0.1), settings)
-    runners, spell, offset_ne_m = [], {}, [0.0, 0.0, 0.0]
-    seen_at = world._largest_seen
-    world._largest_seen = lambda t_s, truth, centre: seen_at(
-        t_s, truth, tuple(float(c) + d for c, d in zip(centre, offset_ne_m, strict=True))
+    sliding 0.15 m aside over 0.5 s as GRAB begins, the filter following it, and the limit is 0.05 m (the mission's
+    0.15 m is for the sea-state-3 swell). Without the limit the gripper closes on the way, off the object. Judged
+    from the simulator's side: no grab, no contact between the slide's start and GRAB's end; picked up in the end,
+    every contact within the capture radius."""
+    slide_n_m = [0.15 * (k + 1) / 25 for k in range(25)]
+    flight, world, left, spell = await fly_with_marker_moved_in_grab(
+        tmp_path, slide_n_m, 1.5, grab_abort_offset_m=abort_offset_m
     )
-
-    async def slide_aside():
-        while not runners or runners[0].state != "GRAB":  # noqa: ASYNC110
-            await asyncio.sleep(0.02)  # polls the mission's state: nothing to wait on
-        spell["t_s"] = asyncio.get_running_loop().time()
-        for k in range(25):
-            offset_ne_m[0] = 0.15 * (k + 1) / 25
-            await asyncio.sleep(0.02)
-        await asyncio.sleep(1.5)
-        offset_ne_m[0] = 0.0
-        spell["end_s"] = asyncio.get_running_loop().time()
-
-    watcher = asyncio.create_task(slide_aside())
-    table = load_mission("pickup")
-    update = {"touchdown_height_m": 1.0, "grab_abort_offset_m": abort_offset_m}
-    table = table.model_copy(update={"params": table.params.model_copy(update=update)})
-    events = EventLog(tmp_path / "events.jsonl")
-    flight = await fly_mission(
-        vehicle, table, settings, LoopClock(), events, on_start=runners.append, sensors=[world.sensors]
-    )
-    watcher.cancel()
-    events.close()
-    left = [e for e in read_jsonl(tmp_path / "events.jsonl") if e["kind"] == "state" and e["from"] == "GRAB"]
-    print(left, spell, world.outcome.grabs, world.outcome.contacts)
     if abort_offset_m is None:  # the sink went on, and the gripper closed while the marker was seen aside
         assert left[0]["reason"] == "grab_settled"
         assert spell["t_s"] < world.outcome.grabs[0]["t_s"] < spell["end_s"]
