@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from app.missions.circle import CircleMission
-from app.missions.descend_target import DescendTarget
+from app.missions.descend_target import DescendTarget, horizontal_distance_m
 from app.missions.estimates import MissionModel
 from app.missions.params import MissionParams
 from app.missions.pickup import PickupEstimates
@@ -275,11 +275,8 @@ def _off_the_estimate(io: MissionIO, m: PickupEstimates, limit_m: float | None) 
     win that back before the water (ArduCopter 0.10 m off as GRAB began, 0.22 m at the water 0.3 s later)."""
     if limit_m is None:
         return False
-    t_s = io.now_s()
-    pv, est = io.boundary.telemetry().pos_vel, m.estimate(t_s)
-    if pv is None or est is None:
-        return False
-    return math.hypot(pv.pos_ned_m[0] - est.pos_ned_m[0], pv.pos_ned_m[1] - est.pos_ned_m[1]) > limit_m
+    pv, est = io.boundary.telemetry().pos_vel, m.estimate(io.now_s())
+    return pv is not None and est is not None and horizontal_distance_m(pv.pos_ned_m, est.pos_ned_m) > limit_m
 
 
 def _blind_too_long(m: PickupEstimates, t_s: float, limit_s: float | None) -> bool:
