@@ -310,6 +310,31 @@ async def test_grabs_sink_off_the_estimate_climbs_back_before_the_water(tmp_path
     assert all(c["error_m"] <= world.scenario.capture_radius_m for c in world.outcome.contacts)
 
 
+@pytest.mark.parametrize("abort_offset_m", ["default", 0.15])
+@pytest.mark.looptime(noop_cycles=2)
+async def test_the_missions_grab_limit_gives_up_a_sink_that_would_grab_a_decimetre_off(tmp_path, abort_offset_m):
+    """The mission's own ``grab_abort_offset_m`` (0.10 m since 2026-12-04; 0.15 before): the marker is seen sliding
+    0.2 m aside over 0.5 s as GRAB begins from 1 m. With the old 0.15 m the sink goes on, and the gripper closes
+    1.23 s into the slide 0.098 m off the object (the water met 0.079 m off). With the mission's limit it gives the
+    grab up 1.05 s into the slide, before the water; sinking on for a moment as it turns, it still touches the water
+    (0.10 m off, within the capture radius) but keeps the gripper open, and picks the object up later, close.
+    Judged from the simulator's side."""
+    params = {} if abort_offset_m == "default" else {"grab_abort_offset_m": abort_offset_m}
+    slide_n_m = [0.2 * (k + 1) / 25 for k in range(25)]
+    flight, world, left, spell = await fly_with_marker_moved_in_grab(tmp_path, slide_n_m, 1.5, **params)
+    first_grab = world.outcome.grabs[0]
+    if abort_offset_m == 0.15:
+        assert left[0]["reason"] == "grab_settled"
+        assert spell["t_s"] < first_grab["t_s"] < spell["end_s"] and first_grab["error_m"] > 0.09
+        return
+    assert left[0]["reason"] == "grab_gone_off" and left[0]["to"] == "TRACK"
+    assert all(not spell["t_s"] <= g["t_s"] <= left[0]["t_s"] + 0.5 for g in world.outcome.grabs)  # gripper open
+    in_spell = [c for c in world.outcome.contacts if spell["t_s"] <= c["t_s"] <= spell["end_s"]]
+    assert all(c["t_s"] > left[0]["t_s"] and c["error_m"] <= world.scenario.capture_radius_m for c in in_spell)
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+    assert world.outcome.grabs[0]["t_s"] > spell["end_s"] and world.outcome.touchdown_error_m < 0.05
+
+
 @pytest.mark.parametrize(("seed", "kind"), [(1, "marker"), (2, "marker"), (3, "marker"), (1, "buoy"), (2, "buoy")])
 @pytest.mark.looptime(noop_cycles=2)
 async def test_sea_state_2_with_current_and_wind_picks_up_the_object_riding_the_waves(seed, kind):
