@@ -221,7 +221,7 @@ class MissionParams(BaseModel):
         3.0, ge=0.1, le=8.0, description="in GRAB, not on the water after this long: close the gripper anyway, s"
     )
     grab_abort_offset_m: float | None = Field(
-        0.10,
+        0.08,
         ge=0.02,
         le=2.0,
         description="in GRAB, not yet on the water and this far off the estimate (horizontally): no grab, climb "

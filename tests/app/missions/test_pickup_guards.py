@@ -192,7 +192,7 @@ def test_a_grab_given_up_off_the_estimate_goes_back_to_track():
     grab = [t.when for t in table.states["GRAB"].transitions]
     assert grab.index("grab_gone_off") < grab.index("grab_settled")
     assert table.states["GRAB"].transitions[grab.index("grab_gone_off")].to == "TRACK"
-    assert table.params.grab_abort_offset_m == 0.10
+    assert table.params.grab_abort_offset_m == 0.08
     assert grab_gone_off(ctx(est(progress={"grab_gone_off": 1.0}), state="GRAB"))
     assert not grab_gone_off(ctx(est(progress={"grab_gone_off": 0.0}), state="GRAB"))
     assert not grab_gone_off(ctx(est(), state="GRAB"))

@@ -313,12 +313,13 @@ async def test_grabs_sink_off_the_estimate_climbs_back_before_the_water(tmp_path
 @pytest.mark.parametrize("abort_offset_m", ["default", 0.15])
 @pytest.mark.looptime(noop_cycles=2)
 async def test_the_missions_grab_limit_gives_up_a_sink_that_would_grab_a_decimetre_off(tmp_path, abort_offset_m):
-    """The mission's own ``grab_abort_offset_m`` (0.10 m since 2026-12-04; 0.15 before): the marker is seen sliding
+    """The mission's own ``grab_abort_offset_m`` (0.08 m since 2026-12-04; 0.15 before): the marker is seen sliding
     0.2 m aside over 0.5 s as GRAB begins from 1 m. With the old 0.15 m the sink goes on, and the gripper closes
     1.23 s into the slide 0.098 m off the object (the water met 0.079 m off). With the mission's limit it gives the
-    grab up 1.05 s into the slide, before the water; sinking on for a moment as it turns, it still touches the water
-    (0.10 m off, within the capture radius) but keeps the gripper open, and picks the object up later, close.
-    Judged from the simulator's side."""
+    grab up 0.3 s into the slide, 0.7 m over the water, and picks the object up later, 0.012 m off. (At 0.10 m it
+    gave up 1.05 s in and, sinking on for a moment as it turned, touched the water 0.10 m off, the gripper open:
+    such a contact, if any, must come after the give-up and within the capture radius.) Judged from the
+    simulator's side."""
     params = {} if abort_offset_m == "default" else {"grab_abort_offset_m": abort_offset_m}
     slide_n_m = [0.2 * (k + 1) / 25 for k in range(25)]
     flight, world, left, spell = await fly_with_marker_moved_in_grab(tmp_path, slide_n_m, 1.5, **params)
