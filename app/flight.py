@@ -100,6 +100,7 @@ def build_flight(
             comp.precise_velocity_lead_s,
             g.precise_velocity_error_max_mps,
             precise_damping_s=comp.precise_damping_s,
+            climb_speed_max_mps=g.climb_speed_max_mps,
         ),
         g.setpoint_rate_hz,
         g.standby_rate_hz,

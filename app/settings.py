@@ -138,6 +138,13 @@ class GuidanceSettings(_Model):
         description="the law on the horizontal and the vertical error apart, each with its own κ (false: the "
         "thesis's one 3-D law, where a climb slackens the horizontal hold)",
     )
+    climb_speed_max_mps: float | None = Field(
+        2.0,
+        ge=0.1,
+        le=15.0,
+        description="U_a,max of the separate vertical law when it climbs (Δ_p̃ scaled alike: the same gain near the "
+        "target), where that is above the autopilot's U_a,max; unset: U_a,max, m/s",
+    )
     integral_max_mps: float = Field(0.5, ge=0.0, le=3.0, description="bound of the integral term, m/s")
     integral_within_m: float = Field(
         1.0, gt=0.0, le=20.0, description="integrate the position error only this close to the target, m"

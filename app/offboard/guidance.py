@@ -83,6 +83,8 @@ class ConstantBearingParams:
     precise_velocity_error_max_mps: float | None = None
     precise_damping_s: float | None = None  # τ_d for a target that asks to be followed tightly (None: τ_d)
     damping_s: float = 0.0  # τ_d: guidance on the horizontal p̃ predicted τ_d ahead, p̃ + τ_d (v − v_t), s (0: none)
+    # U_a,max of the separate vertical law when it climbs, with Δ_p̃ scaled to keep the gain U_a,max/Δ_p̃ (None: U_a,max)
+    climb_speed_max_mps: float | None = None
 
     def for_target(self, precise: bool) -> ConstantBearingParams:
         """These params, with the precise Δ_p̃, τ_lead, velocity-error bound and τ_d for a target that asks for it."""
@@ -136,7 +138,7 @@ def constant_bearing_velocity(
             target_vel_ned_mps[2] + lead * target_acc_ned_mps2[2],
         )
     if params.separate_vertical:
-        v_a = (*approach_velocity(p_err[:2], params), *approach_velocity(p_err[2:], params))
+        v_a = (*approach_velocity(p_err[:2], params), vertical_approach_velocity(p_err[2], params))
     else:
         v_a = approach_velocity(p_err, params)
     # v_d = v_a + v_t
@@ -145,6 +147,17 @@ def constant_bearing_velocity(
         v_a[1] + target_vel_ned_mps[1],
         v_a[2] + target_vel_ned_mps[2],
     )
+
+
+def vertical_approach_velocity(down_err_m: float, params: ConstantBearingParams) -> float:
+    """The separate vertical law's v_a,d: as ``approach_velocity`` on p̃_d, except that a climb (below the target,
+    p̃_d > 0) saturates at ``climb_speed_max_mps`` (when that is higher than U_a,max) with Δ_p̃ scaled alike, the
+    same gain U_a,max/Δ_p̃ near the target."""
+    u_mps, climb_mps = params.approach_speed_max_mps, params.climb_speed_max_mps
+    if climb_mps is None or down_err_m <= 0.0 or climb_mps <= u_mps:
+        return approach_velocity((down_err_m,), params)[0]
+    delta_m = params.transient_distance_m * climb_mps / u_mps
+    return -climb_mps * down_err_m / math.sqrt(down_err_m * down_err_m + delta_m * delta_m)
 
 
 def approach_velocity(p_err: tuple[float, ...], params: ConstantBearingParams) -> tuple[float, ...]:

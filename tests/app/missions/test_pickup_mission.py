@@ -21,6 +21,7 @@ from app.offboard.guidance import ConstantBearingParams, approach_speed_mps
 from app.report import read_jsonl
 from app.settings import Settings, load_settings
 from sim.airframes import SIM_PROFILES
+from sim.autopilot_modes import Profile
 from sim.inproc import InProcessVehicle
 from sim.pickup_world import PickupScenario, PickupWorld
 from sim.wind import WindConfig
@@ -227,13 +228,16 @@ async def test_grab_blind_too_long_before_the_water_climbs_back_without_closing_
     assert flight.result.outcome == "picked_up" and world.outcome.caught and flight.figures["retries"] == 0
 
 
-async def fly_with_marker_moved_in_grab(tmp_path, offsets_n_m: list[float], hold_s: float, **params):
+async def fly_with_marker_moved_in_grab(
+    tmp_path, offsets_n_m: list[float], hold_s: float, profile=Profile.PX4, settings=None, **params
+):
     """The calm-sea pickup (seed 1), GRAB from 1 m over the mean sea (``touchdown_height_m``: the sink is long), and
     the marker seen moved north as GRAB begins: by ``offsets_n_m`` in turn, one per 0.02 s, then ``hold_s`` at the
     last, then back where it is. Returns the flight, the world, the states GRAB was left for (the event log's) and
-    the spell: its start ``t_s`` and end ``end_s``, the heights over the sea through it (the simulator's truth)."""
-    settings = load_settings()
-    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off())
+    the spell: its start ``t_s`` and end ``end_s``, the heights over the sea through it (the simulator's truth).
+    ``profile``: the autopilot flown; ``settings``: seapick's (the default ones when not given)."""
+    settings = load_settings() if settings is None else settings
+    vehicle = InProcessVehicle(seed=1, wind=WindConfig.off(), profile=profile)
     world = PickupWorld(vehicle, PickupScenario(seed=1, sea_state=0, current_mps=0.1), settings)
     runners, spell, offset_ne_m = [], {}, [0.0, 0.0, 0.0]
     seen_at = world._largest_seen
@@ -334,6 +338,34 @@ async def test_the_missions_grab_limit_gives_up_a_sink_that_would_grab_a_decimet
     assert all(c["t_s"] > left[0]["t_s"] and c["error_m"] <= world.scenario.capture_radius_m for c in in_spell)
     assert flight.result.outcome == "picked_up" and world.outcome.caught
     assert world.outcome.grabs[0]["t_s"] > spell["end_s"] and world.outcome.touchdown_error_m < 0.05
+
+
+@pytest.mark.parametrize("climb_speed_mps", ["default", None])
+@pytest.mark.looptime(noop_cycles=2)
+async def test_arducopter_giving_a_grab_up_climbs_off_the_water_at_the_climb_speed(tmp_path, climb_speed_mps):
+    """ArduCopter gives GRAB up (the marker seen sliding 0.2 m aside) and TRACK climbs back to its height over
+    the sea. Its guidance saturates at 1.2 m/s (GUIDED's shaping), and a crest rising 1.3 m/s met a vehicle
+    climbing back at 1.16 m/s, 0.26 m off the object (sea state 3, seed 4 run 38). The climb has its own
+    saturation, ``guidance.climb_speed_max_mps`` (2 m/s): judged from the simulator's side, the vehicle climbs
+    faster than 1.7 m/s within 1.5 s of giving up, against at most 1.25 m/s without it, and picks the object up."""
+    settings = load_settings()
+    if climb_speed_mps is None:
+        guidance = settings.guidance.model_copy(update={"climb_speed_max_mps": None})
+        settings = settings.model_copy(update={"guidance": guidance})
+    slide_n_m = [0.2 * (k + 1) / 25 for k in range(25)]
+    flight, world, left, _ = await fly_with_marker_moved_in_grab(
+        tmp_path, slide_n_m, 1.5, profile=Profile.ARDUPILOT, settings=settings
+    )
+    assert left[0]["reason"] == "grab_gone_off" and left[0]["to"] == "TRACK"
+    t0_s = left[0]["t_s"]
+    climb_mps = max(-vd for t, _, vd, _ in world.samples if t0_s <= t <= t0_s + 1.5)
+    print(f"climbing back: up to {climb_mps:.2f} m/s")
+    if climb_speed_mps is None:
+        assert climb_mps < 1.25
+    else:
+        assert climb_mps > 1.7
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+    assert all(c["error_m"] <= world.scenario.capture_radius_m for c in world.outcome.contacts)
 
 
 @pytest.mark.parametrize(("seed", "kind"), [(1, "marker"), (2, "marker"), (3, "marker"), (1, "buoy"), (2, "buoy")])

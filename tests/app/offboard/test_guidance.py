@@ -146,3 +146,40 @@ def test_apart_each_part_is_bounded_by_u_max_and_points_at_the_target(p, pt):
     assert math.hypot(v[0], v[1]) <= 2.0 + 1e-9 and abs(v[2]) <= 2.0 + 1e-9
     # each part points from the vehicle at the target (or is zero)
     assert (pt[0] - p[0]) * v[0] + (pt[1] - p[1]) * v[1] >= 0.0 and (pt[2] - p[2]) * v[2] >= 0.0
+
+
+# ---- climbing at its own speed ----------------------------------------------------------------------------
+
+ARDU = ConstantBearingParams(1.2, 0.24, separate_vertical=True)  # ArduPilot's U_a,max and Δ: 5 1/s
+ARDU_CLIMB = ConstantBearingParams(1.2, 0.24, separate_vertical=True, climb_speed_max_mps=2.0)
+
+
+def test_a_climb_saturates_at_the_climb_speed_with_the_same_gain_near_the_target():
+    """4 m under the target (GRAB given up on the water, TRACK's height above): 1.16 m/s up at ArduPilot's 1.2 m/s
+    saturation, ~1.99 m/s at the climb speed; 1 cm under it, the same 5 1/s either way; the horizontal law and a
+    descent are left as they were."""
+
+    def up(params: ConstantBearingParams, under_m: float) -> float:
+        return -constant_bearing_velocity((0.3, 0.0, under_m), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), params)[2]
+
+    assert up(ARDU, 4.0) == pytest.approx(1.198, abs=1e-3)
+    assert up(ARDU_CLIMB, 4.0) == pytest.approx(2.0 * 4.0 / math.hypot(4.0, 0.4))
+    assert up(ARDU_CLIMB, 0.01) == pytest.approx(up(ARDU, 0.01), rel=2e-3) == pytest.approx(0.05, rel=2e-3)
+    assert up(ARDU_CLIMB, -1.0) == up(ARDU, -1.0) == pytest.approx(-1.2 / math.hypot(1.0, 0.24))  # going down
+    above = constant_bearing_velocity((0.3, 0.0, 4.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), ARDU_CLIMB)
+    level = constant_bearing_velocity((0.3, 0.0, 4.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), ARDU)
+    assert above[:2] == level[:2]
+
+
+def test_the_climb_speed_is_no_brake_and_no_3d_law():
+    """Under U_a,max it changes nothing (PX4's 2 m/s); the thesis's one 3-D law has no vertical law of its own."""
+    px4 = ConstantBearingParams(2.0, 0.4, separate_vertical=True)
+    slower = ConstantBearingParams(2.0, 0.4, separate_vertical=True, climb_speed_max_mps=1.0)
+    one = ConstantBearingParams(1.2, 0.24, climb_speed_max_mps=2.0)
+    for p in ((0.0, 0.0, 3.0), (0.1, -0.2, 0.05), (0.0, 0.0, -2.0)):
+        assert constant_bearing_velocity(p, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), slower) == constant_bearing_velocity(
+            p, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), px4
+        )
+        assert constant_bearing_velocity(p, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), one) == constant_bearing_velocity(
+            p, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), ConstantBearingParams(1.2, 0.24)
+        )
