@@ -155,8 +155,8 @@ ARDU_CLIMB = ConstantBearingParams(1.2, 0.24, separate_vertical=True, climb_spee
 
 
 def test_a_climb_saturates_at_the_climb_speed_with_the_same_gain_near_the_target():
-    """4 m under the target (GRAB given up on the water, TRACK's height above): 1.16 m/s up at ArduPilot's 1.2 m/s
-    saturation, ~1.99 m/s at the climb speed; 1 cm under it, the same 5 1/s either way; the horizontal law and a
+    """4 m under the target (GRAB given up on the water, TRACK's height above): 1.198 m/s up at ArduPilot's 1.2 m/s
+    saturation, 1.99 m/s at the climb speed; 1 cm under it, the same 5 1/s either way; the horizontal law and a
     descent are left as they were."""
 
     def up(params: ConstantBearingParams, under_m: float) -> float:
