@@ -226,6 +226,8 @@ async def start_descend(io: MissionIO) -> None:
         p.touchdown_height_m,
         math.inf if p.final_start_max_rise_mps is None else p.final_start_max_rise_mps,
         math.inf if p.final_blind_pause_s is None else p.final_blind_pause_s,
+        p.touchdown_height_m / p.grab_sink_speed_mps,
+        math.inf if p.grab_blind_max_s is None else p.grab_blind_max_s,
     )
     io.setpoints.engage(target, allow_below_min=True)
 

@@ -231,8 +231,8 @@ class MissionParams(BaseModel):
         None,
         ge=0.1,
         le=10.0,
-        description="in GRAB, not yet on the water and the newest fix older than this: no grab, climb back "
-        "(null: sink on however long it is blind), s",
+        description="in GRAB, not yet on the water and the newest fix older than this: no grab, climb back; "
+        "DESCEND goes on blind only if GRAB's sink would reach the water before (null: no such limit), s",
     )
     marker_size_m: float = Field(0.30, ge=0.02, le=3.0, description="edge of the object's marker, m")
     size_tolerance: float = Field(

@@ -248,6 +248,28 @@ def test_going_blind_it_goes_on_only_if_it_reaches_the_water_while_its_fix_is_fr
         assert scene.final_descent_given_up and target.height_m == target.final_height_now_m()
 
 
+@pytest.mark.parametrize(("blind_max_s", "goes_on"), [(0.8, True), (0.5, False), (None, True)])
+def test_going_blind_it_goes_on_only_if_the_grabs_sink_reaches_the_water_before_its_fix_is_too_old(
+    blind_max_s, goes_on
+):
+    """As above from 0.35 m: the touchdown height comes on a fix 0.38 s old, and GRAB's sink from there takes
+    0.375 s more (0.3 m at 0.8 m/s): the water on a fix ~0.76 s old. GRAB gives a grab up once its fix is older
+    than ``grab_blind_max_s`` — then still sinking, low over the water, where it met the water off the object. So
+    with 0.8 s it goes on down; with 0.5 s it climbs back now, while the camera can still see the object."""
+    scene = Scene(crest_m=0.2)
+    limit = {} if blind_max_s is None else {"grab_blind_max_s": blind_max_s}
+    target = descend(scene, blind_gap_s=0.25, touchdown_height_m=0.3, grab_sink_s=0.3 / 0.8, **limit)
+    t_s = fly(target, scene, 100.0, 7.0)
+    assert target.plunging
+    scene.radar_m = 0.35
+    scene.last_fix_t_s = t_s  # the camera loses the object right over it
+    fly(target, scene, t_s, 0.3)
+    assert target.plunging is goes_on
+    assert target.blind_go_arounds == (0 if goes_on else 1) and target.go_arounds == 0
+    if not goes_on:
+        assert scene.final_descent_given_up and target.height_m == target.final_height_now_m()
+
+
 @pytest.mark.parametrize(("radar_m", "fixes_back"), [(0.6, False), (0.6, True), (0.35, False)])
 def test_going_blind_where_it_cannot_go_on_it_stops_going_down_before_the_gap(radar_m, fixes_back):
     """0.6 m over the water the descent could not go on blind (its fix would be stale before the touchdown height),

@@ -228,6 +228,28 @@ async def test_grab_blind_too_long_before_the_water_climbs_back_without_closing_
     assert flight.result.outcome == "picked_up" and world.outcome.caught and flight.figures["retries"] == 0
 
 
+@pytest.mark.parametrize("blind_max_s", ["default", None])
+@pytest.mark.looptime(noop_cycles=2)
+async def test_going_blind_low_in_descend_goes_on_only_if_the_grab_would_reach_the_water_seeing_enough(blind_max_s):
+    """The camera goes blind for 2 s in DESCEND's final part, 0.5 m over the sea: going on, the vehicle would meet
+    the water ~0.8 s after its last fix, older than the mission's ``grab_blind_max_s`` (0.5 s), so GRAB would give
+    the grab up on the way down, sinking still, low over the water — where it met the water off the object (sea
+    state 3, seed 10 run 130: 0.30 m off). DESCEND climbs back now (→ TRACK), while it is high enough to, and
+    the descent starts over on seeing again. Without the limit (null) it goes on blind: GRAB, and the gripper
+    closes on the water within the blind spell. Judged from the simulator's side (its heights and contacts)."""
+    params = {} if blind_max_s == "default" else {"grab_blind_max_s": blind_max_s}
+    flight, world, blind = await fly_blinded("DESCEND", 0.5, 2.0, **params)
+    in_spell = [c for c in world.outcome.contacts if blind["t_s"] <= c["t_s"] <= blind["end_s"]]
+    if blind_max_s == "default":
+        assert load_mission("pickup").params.grab_blind_max_s == 0.5
+        assert blind["states"][blind["before"] - 1 :] == ["DESCEND", "TRACK"]  # climbed back, no GRAB while blind
+        assert not in_spell and min(blind["heights_m"]) > 0.25  # off the water all the while
+    else:
+        assert blind["states"][blind["before"] - 1 : blind["before"] + 1] == ["DESCEND", "GRAB"]
+        assert in_spell and min(blind["heights_m"]) < 0.05  # down on the water, blind
+    assert flight.result.outcome == "picked_up" and world.outcome.caught
+
+
 async def fly_with_marker_moved_in_grab(
     tmp_path, offsets_n_m: list[float], hold_s: float, profile=Profile.PX4, settings=None, **params
 ):
