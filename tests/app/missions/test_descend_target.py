@@ -235,8 +235,14 @@ def test_going_blind_it_goes_on_only_if_it_reaches_the_water_while_its_fix_is_fr
     the touchdown height (0.3 m) comes 0.1 s later, on a fix 0.38 s old (fresh: 0.5 s) — on down; from 0.6 m it
     would come 0.6 s later, on a fix 0.88 s old: stale on the way, the descent would turn back at the bottom, where
     crests met it off the object. It climbs back now instead, while the camera can still see the object."""
+    going_blind_right_over_the_object(radar_m, goes_on)
+
+
+def going_blind_right_over_the_object(radar_m: float, goes_on: bool, **kw) -> None:
+    """Into the final part on fresh fixes, then the camera loses the object right over it ``radar_m`` over the
+    water: 0.3 s later the descent goes on (``goes_on``) or has climbed back to the final height, given up."""
     scene = Scene(crest_m=0.2)
-    target = descend(scene, blind_gap_s=0.25, touchdown_height_m=0.3)
+    target = descend(scene, blind_gap_s=0.25, touchdown_height_m=0.3, **kw)
     t_s = fly(target, scene, 100.0, 7.0)
     assert target.plunging
     scene.radar_m = radar_m
@@ -256,18 +262,8 @@ def test_going_blind_it_goes_on_only_if_the_grabs_sink_reaches_the_water_before_
     0.375 s more (0.3 m at 0.8 m/s): the water on a fix ~0.76 s old. GRAB gives a grab up once its fix is older
     than ``grab_blind_max_s`` — then still sinking, low over the water, where it met the water off the object. So
     with 0.8 s it goes on down; with 0.5 s it climbs back now, while the camera can still see the object."""
-    scene = Scene(crest_m=0.2)
     limit = {} if blind_max_s is None else {"grab_blind_max_s": blind_max_s}
-    target = descend(scene, blind_gap_s=0.25, touchdown_height_m=0.3, grab_sink_s=0.3 / 0.8, **limit)
-    t_s = fly(target, scene, 100.0, 7.0)
-    assert target.plunging
-    scene.radar_m = 0.35
-    scene.last_fix_t_s = t_s  # the camera loses the object right over it
-    fly(target, scene, t_s, 0.3)
-    assert target.plunging is goes_on
-    assert target.blind_go_arounds == (0 if goes_on else 1) and target.go_arounds == 0
-    if not goes_on:
-        assert scene.final_descent_given_up and target.height_m == target.final_height_now_m()
+    going_blind_right_over_the_object(0.35, goes_on, grab_sink_s=0.3 / 0.8, **limit)
 
 
 @pytest.mark.parametrize(("radar_m", "fixes_back"), [(0.6, False), (0.6, True), (0.35, False)])
