@@ -10,7 +10,8 @@ goes to stderr; ``DIR`` (default ``runs/eval-<seed>``) gets ``results.jsonl`` (a
 ``results.partial.jsonl`` gets each result as it comes in, so a run that dies keeps what it flew). On stdout: the
 summary table, or with ``--json`` one JSON object, the table then going to stderr (per configuration runs,
 success_rate, touchdown_p50_m, touchdown_p95_m, off_target_touchdowns, envelope_violations,
-speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's p95 over the second's).
+speedup_vs_real_time, …; ``ratio_p95`` = the first configuration's p95 over the second's, null with
+``ratio_p95_why`` when one of them never touched down).
 """
 
 from __future__ import annotations

@@ -56,7 +56,7 @@ def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict
     pickup, off-target touchdowns, envelope and safety violations, aborts by reason, the touchdown error by
     estimator preset, autopilot and object (``touchdown_by``), speed-up over real time
     (mission time over the runs' own wall time); and ``ratio_p95`` = the first configuration's p95 over the
-    second's."""
+    second's, or null with ``ratio_p95_why`` saying why (a configuration that never touched down has no p95)."""
     out: dict[str, Any] = {"configs": {}}
     for name in configs:
         rs = [r for r in results if r["config"] == name]
@@ -98,6 +98,15 @@ def summarise(results: Sequence[dict[str, Any]], configs: Sequence[str]) -> dict
     if len(configs) >= 2:
         a, b = (out["configs"][c]["touchdown_p95_m"] for c in configs[:2])
         out["ratio_p95"] = round(a / b, 3) if a is not None and b else None
+        if out["ratio_p95"] is None:  # say why there is nothing to divide, rather than leave a bare null
+            out["ratio_p95_why"] = (
+                "; ".join(
+                    f"{c} touched down in none of its {out['configs'][c]['runs']} runs"
+                    for c in configs[:2]
+                    if out["configs"][c]["touchdowns"] == 0
+                )
+                or f"{configs[1]}'s p95 is 0"
+            )
     return out
 
 
@@ -127,9 +136,11 @@ def table(summary: dict[str, Any]) -> str:
             f"{_m(c['touchdown_max_m']):>9} {tp:>12} {c['off_target_touchdowns']:>10} {c['envelope_violations']:>8} "
             f"{c['safety_violations']:>6} {speed:>8}"
         )
+    names = list(cs)
     if summary.get("ratio_p95") is not None:
-        names = list(cs)
         rows.append(f"ratio p95 {names[0]}/{names[1]}: {summary['ratio_p95']:.2f}")
+    elif summary.get("ratio_p95_why"):
+        rows.append(f"ratio p95 {names[0]}/{names[1]}: — ({summary['ratio_p95_why']})")
     for name, c in cs.items():
         by_sea = ", ".join(f"SS{k} {100 * v:.0f}%" for k, v in c["success_by_sea_state"].items())
         rows.append(

@@ -163,6 +163,22 @@ def _line(run: int, estimator: str, error_m: float | None, off_target: int) -> d
     }  # fmt: skip
 
 
+def test_a_configuration_that_never_touched_down_leaves_the_ratio_null_and_says_so():
+    """The thesis configuration at sea state 3 picks nothing up: there is no p95 to divide, and the summary and
+    its table say which configuration had no touchdown rather than leaving a bare null; with both down, the ratio
+    and no reason."""
+    seapick = [_line(0, "gnss", 0.04, 0), _line(1, "gnss", 0.08, 0)]
+    never = [{**_line(i, "gnss", None, 0), "config": "thesis"} for i in range(3)]
+    summary = summarise(never + seapick, ["thesis", "seapick"])
+    assert summary["ratio_p95"] is None
+    assert summary["ratio_p95_why"] == "thesis touched down in none of its 3 runs"
+    assert "ratio p95 thesis/seapick: — (thesis touched down in none of its 3 runs)" in table(summary)
+    down = [{**_line(i, "gnss", 0.12, 0), "config": "thesis"} for i in range(3)]
+    summary = summarise(down + seapick, ["thesis", "seapick"])
+    assert summary["ratio_p95"] == round(0.12 / 0.078, 3) and "ratio_p95_why" not in summary
+    assert f"ratio p95 thesis/seapick: {0.12 / 0.078:.2f}" in table(summary)
+
+
 def test_off_target_touchdowns_are_split_by_estimator_with_those_of_runs_that_never_picked_up():
     """The touchdown split by the scenario's fields counts each value's off-target touchdowns over all its runs:
     a failed run that met the water off the object is counted, and a value with neither a touchdown nor an
